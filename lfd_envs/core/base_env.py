@@ -1,0 +1,283 @@
+"""The environment contract shared by every lfd env (SPEC §3).
+
+A task subclasses :class:`LfdEnv` and only describes the task through a handful of hooks
+(``_setup_variant``, ``_apply_action``, ``_state_obs``, ``_render``, ``_performance``,
+``_get_sim_state``/``_set_sim_state``). Everything users rely on lives here once:
+seeding, the train/eval variant split, observation modes, action checking and clipping,
+``info`` keys, normalised performance, ``get_state``/``set_state`` and headless rendering.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from lfd_envs.core.errors import check_choice, check_image_size, strict_kwargs
+from lfd_envs.core.variants import VariantSplit
+
+OBS_MODES = ("state", "image", "state+image")
+
+
+class LfdEnv(gym.Env):
+    """Base class of every lfd environment.
+
+    Subclasses set ``task_name``, build ``self.action_space`` and ``self.state_space``
+    (a float32 ``Box`` of the reduced state) in their ``__init__`` and then call
+    :meth:`_finish_init`. Every ``__init__`` of a subclass rejects unknown keyword
+    arguments with a ``TypeError`` listing the valid ones.
+
+    Episode conventions:
+        * ``reset(seed=..., options={"variant": k, "split": "train"|"eval"})`` draws variant
+          ``k`` of the split (random when omitted, from the env's seeded generator).
+        * ``step`` validates the action (``ValueError`` naming the expected shape for a wrong
+          shape or NaN/inf) and clips it to the action space bounds.
+        * reward = ``performance(t) - performance(t-1)`` unless the task documents otherwise.
+        * ``terminated`` is True only for tasks whose episode ends on success;
+          ``truncated`` becomes True after ``horizon`` steps.
+        * ``info`` has ``performance``, ``normalized_performance``, ``variant`` (global id;
+          train ids come before eval ids) and ``is_success`` where the task defines success.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 10}
+    task_name: ClassVar[str] = "LfdEnv"
+    #: observation modes this task supports (particle tasks add "particles")
+    supported_obs_modes: ClassVar[tuple[str, ...]] = OBS_MODES
+    #: whether the episode terminates when the task is solved
+    terminate_on_success: ClassVar[bool] = False
+    #: size of frames returned by ``render()``
+    render_size: tuple[int, int] = (256, 256)
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        init = cls.__dict__.get("__init__")
+        if init is not None and not getattr(init, "__lfd_strict__", False):
+            cls.__init__ = strict_kwargs(init)  # type: ignore[method-assign]
+
+    # ------------------------------------------------------------------ construction
+    def _init_contract(
+        self,
+        *,
+        obs_mode: str,
+        image_size: int | tuple[int, int],
+        render_mode: str | None,
+        horizon: int,
+        num_train_variants: int = 800,
+        num_eval_variants: int = 200,
+    ) -> None:
+        """Store and validate the arguments every env shares. Call first in ``__init__``."""
+        self.obs_mode = check_choice("obs_mode", obs_mode, self.supported_obs_modes)
+        self.image_size = check_image_size(image_size)
+        if render_mode is not None:
+            check_choice("render_mode", render_mode, self.metadata["render_modes"])
+        self.render_mode = render_mode
+        if int(horizon) < 1:
+            raise ValueError(f"horizon must be >= 1, got {horizon}")
+        self.horizon = int(horizon)
+        self.variants = VariantSplit(self.task_name, int(num_train_variants), int(num_eval_variants))
+        self._variant_split = "train"
+        self._variant_index = -1
+        self._step_count = 0
+        self._p0 = 0.0
+        self._prev_perf = 0.0
+
+    def _finish_init(self) -> None:
+        """Build ``observation_space`` from ``obs_mode``. Call last in ``__init__``."""
+        self.observation_space = self._observation_space_for(self.obs_mode)
+
+    def _observation_space_for(self, obs_mode: str) -> spaces.Space:
+        h, w = self.image_size
+        image = spaces.Box(0, 255, (h, w, 3), np.uint8)
+        if obs_mode == "state":
+            return self.state_space
+        if obs_mode == "image":
+            return image
+        if obs_mode == "state+image":
+            return spaces.Dict({"state": self.state_space, "image": image})
+        if obs_mode == "particles":
+            return self.particles_space
+        raise ValueError(f"obs_mode must be one of {self.supported_obs_modes}, got {obs_mode!r}")
+
+    # ------------------------------------------------------------------ hooks for tasks
+    state_space: spaces.Box
+    particles_space: spaces.Box
+
+    def _setup_variant(self, rng: np.random.Generator) -> None:
+        """Put the simulation into a freshly drawn variant (geometry, goals, start state)."""
+        raise NotImplementedError
+
+    def _apply_action(self, action: np.ndarray) -> None:
+        """Advance the simulation by one env step with a validated, clipped action."""
+        raise NotImplementedError
+
+    def _state_obs(self) -> np.ndarray:
+        """Reduced state vector (float32, matches ``state_space``)."""
+        raise NotImplementedError
+
+    def _particles_obs(self) -> np.ndarray:
+        raise NotImplementedError(f"{type(self).__name__} has no particle observation")
+
+    def _render(self, height: int, width: int) -> np.ndarray:
+        """RGB uint8 image ``(height, width, 3)`` from the task camera."""
+        raise NotImplementedError
+
+    def _performance(self) -> float:
+        """Task performance ``p(s_t)`` (higher is better)."""
+        raise NotImplementedError
+
+    @property
+    def performance_optimum(self) -> float:
+        """``p_opt`` used by the normalised performance."""
+        return 0.0
+
+    def _is_success(self) -> bool | None:
+        """True/False where the task defines success, else None (no ``is_success`` key)."""
+        return None
+
+    def _get_sim_state(self) -> dict[str, np.ndarray]:
+        raise NotImplementedError
+
+    def _set_sim_state(self, state: dict[str, np.ndarray]) -> None:
+        raise NotImplementedError
+
+    def _reward(self, performance: float, prev_performance: float) -> float:
+        """Default reward: performance change during the step."""
+        return float(performance - prev_performance)
+
+    def normalized_performance(self, performance: float) -> float:
+        """p̂ = (p - p0) / (p_opt - p0) relative to the episode's start state (SPEC §3)."""
+        denom = self.performance_optimum - self._p0
+        if abs(denom) < 1e-9:
+            return 1.0 if performance >= self.performance_optimum - 1e-9 else 0.0
+        return float((performance - self._p0) / denom)
+
+    # ------------------------------------------------------------------ gymnasium API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        options = dict(options or {})
+        unknown = sorted(set(options) - {"variant", "split"})
+        if unknown:
+            raise ValueError(f"unknown reset options {unknown}; valid options are ['split', 'variant']")
+        split = options.get("split", "train")
+        n = self.variants.size(split)  # validates split
+        super().reset(seed=seed)
+        k = options.get("variant")
+        if k is None:
+            k = int(self.np_random.integers(n))
+        rng = self.variants.rng(split, k)  # validates k
+        self._variant_split, self._variant_index = split, int(k)
+        self._setup_variant(rng)
+        self._step_count = 0
+        self._p0 = self._prev_perf = float(self._performance())
+        return self._observation(), self._info(self._p0)
+
+    def step(self, action: Any):
+        if self._variant_index < 0:
+            raise RuntimeError("call reset() before step()")
+        action = self.validate_action(action)
+        self._apply_action(action)
+        self._step_count += 1
+        perf = float(self._performance())
+        reward = self._reward(perf, self._prev_perf)
+        self._prev_perf = perf
+        info = self._info(perf)
+        terminated = bool(self.terminate_on_success and info.get("is_success", False))
+        truncated = self._step_count >= self.horizon and not terminated
+        return self._observation(), float(reward), terminated, truncated, info
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array":
+            return None
+        return self._render(*self.render_size)
+
+    # ------------------------------------------------------------------ helpers
+    def validate_action(self, action: Any) -> np.ndarray:
+        """Check shape and finiteness (``ValueError`` otherwise) and clip to the bounds."""
+        space = self.action_space
+        assert isinstance(space, spaces.Box), "override validate_action for non-Box action spaces"
+        try:
+            arr = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"action must be a numeric array of shape {space.shape}, got {action!r}") from None
+        if arr.shape != space.shape:
+            if arr.size == int(np.prod(space.shape)) and arr.ndim <= 1 and len(space.shape) == 1:
+                arr = arr.reshape(space.shape)
+            else:
+                raise ValueError(f"action must have shape {space.shape}, got shape {arr.shape}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"action must be finite (no NaN/inf); expected shape {space.shape}, got {arr}")
+        return np.clip(arr, space.low, space.high).astype(np.float32)
+
+    def _observation(self) -> Any:
+        mode = self.obs_mode
+        if mode == "state":
+            return self._state_obs()
+        if mode == "image":
+            return self._render(*self.image_size)
+        if mode == "state+image":
+            return {"state": self._state_obs(), "image": self._render(*self.image_size)}
+        return self._particles_obs()
+
+    def _info(self, performance: float) -> dict[str, Any]:
+        info: dict[str, Any] = {
+            "performance": float(performance),
+            "normalized_performance": self.normalized_performance(performance),
+            "variant": int(self.variants.global_id(self._variant_split, self._variant_index)),
+        }
+        success = self._is_success()
+        if success is not None:
+            info["is_success"] = bool(success)
+        return info
+
+    @property
+    def variant(self) -> tuple[str, int]:
+        """``(split, k)`` of the current variant."""
+        return self._variant_split, self._variant_index
+
+    @property
+    def elapsed_steps(self) -> int:
+        return self._step_count
+
+    # ------------------------------------------------------------------ state
+    def get_state(self) -> dict[str, np.ndarray]:
+        """Full simulator + episode state as a flat dict of numpy arrays (copies)."""
+        if self._variant_index < 0:
+            raise RuntimeError("call reset() before get_state()")
+        state = {f"sim/{k}": np.array(v, copy=True) for k, v in self._get_sim_state().items()}
+        state["episode/split"] = np.array(0 if self._variant_split == "train" else 1, dtype=np.int64)
+        state["episode/variant"] = np.array(self._variant_index, dtype=np.int64)
+        state["episode/step"] = np.array(self._step_count, dtype=np.int64)
+        state["episode/p0"] = np.array(self._p0, dtype=np.float64)
+        state["episode/prev_performance"] = np.array(self._prev_perf, dtype=np.float64)
+        return state
+
+    def set_state(self, state: dict[str, np.ndarray]) -> None:
+        """Restore a state from :meth:`get_state`; the futures of both are identical.
+
+        The variant is rebuilt first if it differs from the current one. A malformed state
+        raises ``ValueError`` before anything is changed.
+        """
+        required = {"episode/split", "episode/variant", "episode/step", "episode/p0", "episode/prev_performance"}
+        missing = sorted(required - set(state))
+        if missing:
+            raise ValueError(f"state is missing keys {missing}; pass a dict from get_state()")
+        split = "train" if int(state["episode/split"]) == 0 else "eval"
+        k = int(state["episode/variant"])
+        self.variants.global_id(split, k)  # validates before changing anything
+        sim = {key[4:]: np.asarray(v) for key, v in state.items() if key.startswith("sim/")}
+        if (split, k) != (self._variant_split, self._variant_index):
+            self._setup_variant(self.variants.rng(split, k))
+            self._variant_split, self._variant_index = split, k
+        self._set_sim_state(sim)
+        self._step_count = int(state["episode/step"])
+        self._p0 = float(state["episode/p0"])
+        self._prev_perf = float(state["episode/prev_performance"])
+
+    def current_observation(self) -> Any:
+        """Observation of the current state (e.g. after :meth:`set_state`)."""
+        return self._observation()
+
+    def current_info(self) -> dict[str, Any]:
+        """``info`` dict of the current state."""
+        return self._info(float(self._performance()))

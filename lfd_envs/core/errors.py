@@ -1,0 +1,78 @@
+"""Input checking shared by every env: clear messages, nothing left half-changed."""
+
+from __future__ import annotations
+
+import functools
+import inspect
+from typing import Any, Callable, Iterable
+
+import numpy as np
+
+
+def check_choice(name: str, value: Any, choices: Iterable[Any]) -> Any:
+    """Return ``value`` if it is one of ``choices``, else raise ``ValueError`` listing them."""
+    choices = tuple(choices)
+    if value not in choices:
+        raise ValueError(f"{name} must be one of {choices}, got {value!r}")
+    return value
+
+
+def check_int_range(name: str, value: Any, low: int, high: int) -> int:
+    """Return ``value`` as int if ``low <= value <= high``, else raise ``ValueError``."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
+        raise ValueError(f"{name} must be an int in [{low}, {high}], got {value!r}")
+    return int(value)
+
+
+def check_image_size(value: Any) -> tuple[int, int]:
+    """Normalise ``image_size`` (int or ``(height, width)``) to ``(height, width)``."""
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+        value = (int(value), int(value))
+    try:
+        h, w = (int(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"image_size must be an int or (height, width), got {value!r}") from None
+    if not (1 <= h <= 2048 and 1 <= w <= 2048):
+        raise ValueError(f"image_size must be within 1..2048 pixels per side, got {value!r}")
+    return h, w
+
+
+def check_array(name: str, value: Any, shape: tuple[int, ...], dtype: Any = np.float32) -> np.ndarray:
+    """Convert ``value`` to an array of ``shape`` with finite entries, or raise ``ValueError``."""
+    try:
+        arr = np.asarray(value, dtype=dtype)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a numeric array of shape {shape}, got {value!r}") from None
+    if arr.shape != tuple(shape):
+        raise ValueError(f"{name} must have shape {tuple(shape)}, got shape {arr.shape}")
+    if np.issubdtype(arr.dtype, np.floating) and not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be finite (no NaN/inf), got {arr}")
+    return arr
+
+
+def strict_kwargs(init: Callable) -> Callable:
+    """Decorate an ``__init__`` so unknown keyword arguments raise a ``TypeError`` listing the valid ones.
+
+    Python's own message only names the bad argument; users of ``gymnasium.make`` need
+    to see what *is* accepted.
+    """
+    sig = inspect.signature(init)
+    params = sig.parameters
+    takes_var_kw = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
+    valid = sorted(
+        n for n, p in params.items()
+        if n != "self" and p.kind in (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+    )
+
+    @functools.wraps(init)
+    def wrapper(self, *args, **kwargs):
+        if not takes_var_kw:
+            unknown = sorted(set(kwargs) - set(valid))
+            if unknown:
+                raise TypeError(
+                    f"{type(self).__name__} got unknown argument(s) {unknown}; valid arguments are {valid}"
+                )
+        return init(self, *args, **kwargs)
+
+    wrapper.__lfd_strict__ = True  # type: ignore[attr-defined]
+    return wrapper

@@ -1,0 +1,48 @@
+"""Registers every lfd env with Gymnasium when ``lfd_envs`` is imported.
+
+Gymnasium 1.x has no plugin entry points; ``gymnasium.make("lfd_envs:<Id>")`` imports this
+package first, which registers everything below. Entry points are strings, so importing
+``lfd_envs`` stays cheap (no Warp or MuJoCo import until an env is made).
+"""
+
+from __future__ import annotations
+
+import gymnasium as gym
+
+_P = "lfd_envs.tasks"
+_M = "lfd_envs.mujoco"
+
+#: env id -> (entry point, vector entry point or None, default kwargs)
+ENV_SPECS: dict[str, tuple[str, str | None, dict]] = {
+    "StraightenRope-v0": (f"{_P}.rope:StraightenRopeEnv", f"{_P}.rope:StraightenRopeVectorEnv", {}),
+    "ClothFold-v0": (f"{_P}.cloth_fold:ClothFoldEnv", f"{_P}.cloth_fold:ClothFoldVectorEnv", {}),
+    "ClothFoldDiagonal-v0": (
+        f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalEnv", f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalVectorEnv", {}),
+    "ClothFoldDiagonalPinned-v0": (
+        f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalEnv", f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalVectorEnv",
+        {"pinned": True}),
+    "ClothFoldDiagonalUnpinned-v0": (
+        f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalEnv", f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalVectorEnv",
+        {"pinned": False}),
+    "DryCloth-v0": (f"{_P}.dry_cloth:DryClothEnv", f"{_P}.dry_cloth:DryClothVectorEnv", {}),
+    "ThreeBoxes-v0": (f"{_P}.three_boxes:ThreeBoxesEnv", f"{_P}.three_boxes:ThreeBoxesVectorEnv", {}),
+    "Push2DObstacle-v0": (f"{_M}.push2d:Push2DObstacleEnv", None, {}),
+    "SawyerPushObstacle-v0": (f"{_M}.sawyer_push:SawyerPushObstacleEnv", None, {}),
+    "SawyerLiftObstacle-v0": (f"{_M}.sawyer_lift:SawyerLiftObstacleEnv", None, {}),
+    "SawyerAssemblyObstacle-v0": (f"{_M}.sawyer_assembly:SawyerAssemblyObstacleEnv", None, {}),
+    "NistBoardInsert-v0": (f"{_M}.nist:NistBoardInsertEnv", None, {}),
+}
+
+PARTICLE_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if v[0].startswith(_P))
+MUJOCO_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if v[0].startswith(_M))
+
+
+def register_all() -> None:
+    """Register every id in :data:`ENV_SPECS` (idempotent)."""
+    for env_id, (entry, vec_entry, kwargs) in ENV_SPECS.items():
+        if env_id in gym.registry:
+            continue
+        # Our envs enforce the contract themselves (and pass check_env); Gymnasium's
+        # passive checker would only add per-step overhead.
+        gym.register(id=env_id, entry_point=entry, vector_entry_point=vec_entry, kwargs=dict(kwargs),
+                     disable_env_checker=True)
