@@ -306,10 +306,11 @@ class Renderer:
 
         if self._out is None or self._out.shape[0] != W:
             self._out = wp.empty((W, self.height, self.width, 3), dtype=wp.uint8, device=self.device)
+        cols = self.width if self.device.is_cpu else 1
         wp.launch(
             render_kernel,
-            dim=(W, self.height, self.width),
-            inputs=[s, self._view(), self.supersample],
+            dim=(W, self.height, (self.width + cols - 1) // cols),
+            inputs=[s, self._view(), self.supersample, cols],
             outputs=[self._out],
             device=self.device,
         )

@@ -1,0 +1,131 @@
+"""Agents the harness can run, by name or as a third-party ``package.module:factory``.
+
+A factory is called as ``factory(env, seed, **kwargs)`` and returns any object with
+``learn(total_timesteps)`` and ``predict(obs, deterministic=True) -> (action, state)``
+(Stable-Baselines3's interface). Optional: ``reset()`` (called after every eval reset, for
+scripted or recurrent agents) and ``needs_training = False`` (skip ``learn``).
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any, Callable
+
+import gymnasium as gym
+import numpy as np
+
+AgentFactory = Callable[..., Any]
+
+
+class RandomAgent:
+    """Uniform random actions; the lower reference row of every table."""
+
+    needs_training = False
+
+    def __init__(self, env: gym.Env, seed: int = 0):
+        self.action_space = env.action_space
+        self.action_space.seed(seed)
+
+    def learn(self, total_timesteps: int, **_: Any) -> "RandomAgent":
+        return self
+
+    def predict(self, obs: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True):
+        return self.action_space.sample(), None
+
+
+class ExpertAgent:
+    """The task's scripted expert (:func:`lfd_envs.experts.make_expert`); the upper reference row."""
+
+    needs_training = False
+
+    def __init__(self, env: gym.Env, seed: int = 0, **kwargs: Any):
+        from lfd_envs.experts import make_expert
+
+        self._env = env
+        self._kwargs = kwargs
+        self._expert = make_expert(env, **kwargs)
+
+    def bind(self, env: gym.Env) -> None:
+        """Use ``env`` (the evaluation env) as the expert's privileged source of state."""
+        from lfd_envs.experts import make_expert
+
+        self._expert = make_expert(env, **self._kwargs)
+
+    def reset(self) -> None:
+        self._expert.reset()
+
+    def learn(self, total_timesteps: int, **_: Any) -> "ExpertAgent":
+        return self
+
+    def predict(self, obs: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True):
+        return self._expert.predict(obs, deterministic=True)
+
+
+def _policy_name(env: gym.Env) -> str:
+    space = env.observation_space
+    if isinstance(space, gym.spaces.Dict):
+        return "MultiInputPolicy"
+    if isinstance(space, gym.spaces.Box) and space.dtype == np.uint8 and len(space.shape) == 3:
+        return "CnnPolicy"
+    return "MlpPolicy"
+
+
+def _sb3(algo_name: str) -> AgentFactory:
+    def factory(env: gym.Env, seed: int = 0, **kwargs: Any):
+        import stable_baselines3 as sb3
+
+        algo = getattr(sb3, algo_name)
+        kwargs.setdefault("verbose", 0)
+        if algo_name in ("SAC", "TD3"):
+            kwargs.setdefault("learning_starts", 100)
+            kwargs.setdefault("buffer_size", 100_000)
+        return algo(_policy_name(env), env, seed=seed, device="cpu", **kwargs)
+
+    factory.__doc__ = f"Stable-Baselines3 {algo_name} with its default hyper-parameters."
+    return factory
+
+
+def _lfd_agent(class_name: str, module: str = "lfd_agents") -> AgentFactory:
+    def factory(env: gym.Env, seed: int = 0, **kwargs: Any):
+        cls = getattr(importlib.import_module(module), class_name)
+        if hasattr(cls, "for_benchmark"):
+            return cls.for_benchmark(env, seed=seed, **kwargs)
+        return cls(_policy_name(env), env, seed=seed, **kwargs)
+
+    factory.__doc__ = f"{module}.{class_name}"
+    return factory
+
+
+BUILTIN_AGENTS: dict[str, AgentFactory] = {
+    "random": lambda env, seed=0, **kw: RandomAgent(env, seed),
+    "expert": lambda env, seed=0, **kw: ExpertAgent(env, seed, **kw),
+    "sac": _sb3("SAC"),
+    "td3": _sb3("TD3"),
+    "ppo": _sb3("PPO"),
+    "dmfd": _lfd_agent("DMfD"),
+    "sac_lfd": _lfd_agent("SACLfD"),
+    "bc": _lfd_agent("BC"),
+    "awac": _lfd_agent("AWAC"),
+    "mopa_sac": _lfd_agent("MoPASAC", "lfd_agents.mopa"),
+}
+
+
+def resolve_agent(spec: str) -> AgentFactory:
+    """Factory for a built-in name or a ``package.module:factory`` spec (clear error otherwise)."""
+    if spec in BUILTIN_AGENTS:
+        return BUILTIN_AGENTS[spec]
+    if ":" not in spec:
+        raise ValueError(
+            f"unknown agent {spec!r}; valid built-in agents are {sorted(BUILTIN_AGENTS)}, "
+            "or give a third-party factory as 'package.module:factory'"
+        )
+    module_name, _, attr = spec.partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as exc:
+        raise ValueError(f"cannot import module {module_name!r} of agent {spec!r}: {exc}") from exc
+    factory = getattr(module, attr, None)
+    if not callable(factory):
+        public = sorted(n for n in dir(module) if not n.startswith("_") and callable(getattr(module, n)))
+        raise ValueError(f"{module_name!r} has no callable {attr!r}; callables there: {public}")
+    return factory

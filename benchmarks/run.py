@@ -1,0 +1,284 @@
+"""Train and evaluate agents on envs, one JSON per cell, then rewrite ``leaderboard.md``.
+
+Usage::
+
+    python -m benchmarks.run --suite smoke
+    python -m benchmarks.run --suite paper-dmfd --seeds 0 1 2 --budget 200000
+    python -m benchmarks.run --suite smoke --agent mypkg.agents:make_agent   # third-party agent
+    python -m benchmarks.run --suite path/to/suite.json --out results/
+
+A suite (``benchmarks/configs/<name>.json``) lists cells: an env id with its kwargs, the
+agents to run on it (name -> kwargs), a training budget (env steps), seeds and the number
+of evaluation episodes. Each (env, agent, seed) cell is trained, evaluated on the env's
+*eval* variants and saved as JSON; cells whose JSON exists are skipped (resume).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+CONFIGS = Path(__file__).resolve().parent / "configs"
+DEFAULT_OUT = Path(__file__).resolve().parent / "results"
+
+
+@dataclass
+class Cell:
+    """One (env, agent, seed) training-and-evaluation run."""
+
+    suite: str
+    env_id: str
+    env_kwargs: dict[str, Any]
+    agent: str
+    agent_kwargs: dict[str, Any]
+    seed: int
+    budget: int
+    eval_episodes: int
+    curve_points: int = 4
+    tags: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def key(self) -> str:
+        safe_agent = self.agent.replace(":", "_").replace("/", "_")
+        label = self.tags.get("label")
+        env_dir = self.env_id.split(":")[-1].replace("/", "_") + (f"__{label}" if label else "")
+        return f"{self.suite}/{env_dir}/{safe_agent}/seed{self.seed}"
+
+
+# ---------------------------------------------------------------------- suites
+def available_suites() -> list[str]:
+    return sorted(p.stem for p in CONFIGS.glob("*.json"))
+
+
+def load_suite(name: str) -> dict[str, Any]:
+    """Load a suite by name (``benchmarks/configs``) or path to a JSON file."""
+    path = Path(name)
+    if not path.suffix:
+        path = CONFIGS / f"{name}.json"
+    if not path.exists():
+        raise ValueError(f"unknown suite {name!r}; valid suites are {available_suites()} or a path to a .json file")
+    suite = json.loads(path.read_text())
+    suite.setdefault("name", path.stem)
+    return suite
+
+
+def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs: list[str] | None = None,
+                 seeds: list[int] | None = None, budget: int | None = None, device: str | None = None,
+                 extra_agents: list[str] | None = None) -> list[Cell]:
+    """The grid of cells of ``suite`` after command-line filters and overrides."""
+    from benchmarks.agents import resolve_agent
+
+    import gymnasium as gym
+    import lfd_envs  # noqa: F401
+
+    cells: list[Cell] = []
+    known_envs = [c["env"] for c in suite["cells"]]
+    if envs:
+        bad = [e for e in envs if e not in known_envs]
+        if bad:
+            raise ValueError(f"env(s) {bad} not in suite {suite['name']!r}; valid: {sorted(set(known_envs))}")
+    for spec in suite["cells"]:
+        env_id = spec["env"]
+        if envs and env_id not in envs:
+            continue
+        module, _, bare_id = env_id.rpartition(":")
+        if module:
+            try:
+                importlib.import_module(module)
+            except ImportError as exc:
+                raise ValueError(f"cannot import {module!r} for env {env_id!r}: {exc}") from exc
+        if bare_id not in gym.registry:
+            raise ValueError(f"unknown env {env_id!r}; registered lfd envs: {sorted(lfd_envs.ENV_SPECS)}")
+        cell_agents: dict[str, dict] = dict(spec.get("agents", {}))
+        for extra in extra_agents or []:
+            cell_agents.setdefault(extra, {})
+        if agents:
+            cell_agents = {a: cell_agents.get(a, {}) for a in agents}
+        for name in cell_agents:
+            resolve_agent(name)  # fail early with the list of valid agents
+        for agent, kwargs in cell_agents.items():
+            kwargs = dict(kwargs)
+            if device and agent not in ("random", "expert"):
+                kwargs["device"] = device
+            for seed in seeds if seeds is not None else spec.get("seeds", suite.get("seeds", [0])):
+                cells.append(Cell(
+                    suite=suite["name"], env_id=env_id, env_kwargs=dict(spec.get("env_kwargs", {})),
+                    agent=agent, agent_kwargs=kwargs, seed=int(seed),
+                    budget=int(budget if budget is not None else spec.get("budget", suite.get("budget", 1000))),
+                    eval_episodes=int(spec.get("eval_episodes", suite.get("eval_episodes", 10))),
+                    curve_points=int(spec.get("curve_points", suite.get("curve_points", 4))),
+                    tags={"label": spec["label"]} if "label" in spec else {},
+                ))
+    return cells
+
+
+# ---------------------------------------------------------------------- running
+def evaluate(agent: Any, env, episodes: int, seed: int) -> list[float]:
+    """Final normalised performance p̂(H) of ``agent`` on eval variants ``0..episodes-1``."""
+    if hasattr(agent, "bind"):
+        agent.bind(env)
+    n_eval = env.unwrapped.variants.size("eval") if hasattr(env.unwrapped, "variants") else episodes
+    finals = []
+    for k in range(episodes):
+        obs, info = env.reset(seed=seed * 100_003 + k, options={"split": "eval", "variant": k % n_eval})
+        if hasattr(agent, "reset"):
+            agent.reset()
+        done = False
+        while not done:
+            action, _ = agent.predict(obs, deterministic=True)
+            obs, _, terminated, truncated, info = env.step(action)
+            done = terminated or truncated
+        finals.append(float(info["normalized_performance"]))
+    return finals
+
+
+def environment_info() -> dict[str, Any]:
+    """Versions and hardware recorded in every result."""
+    import importlib.metadata as md
+
+    versions = {}
+    for pkg in ("lfd", "gymnasium", "stable-baselines3", "torch", "warp-lang", "mujoco", "numpy", "ompl", "minari"):
+        try:
+            versions[pkg] = md.version(pkg)
+        except md.PackageNotFoundError:
+            pass
+    cpu = platform.processor()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return {"python": platform.python_version(), "platform": platform.platform(), "cpu": cpu,
+            "cpu_count": os.cpu_count(), "versions": versions, "commit": git_commit()}
+
+
+def git_commit() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                              text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def run_cell(cell: Cell, progress: bool = True) -> dict[str, Any]:
+    """Train ``cell.agent`` for ``cell.budget`` steps with a learning curve, then evaluate it."""
+    import gymnasium as gym
+    from tqdm import tqdm
+
+    from benchmarks.agents import resolve_agent
+
+    factory = resolve_agent(cell.agent)
+    env = gym.make(cell.env_id, **cell.env_kwargs)
+    eval_env = gym.make(cell.env_id, **cell.env_kwargs)
+    t0 = time.perf_counter()
+    agent = factory(env, cell.seed, **cell.agent_kwargs)
+    curve: list[dict[str, float]] = []
+    trains = getattr(agent, "needs_training", True)
+    points = max(1, cell.curve_points) if trains else 0
+    done_steps = 0
+    curve_episodes = max(1, min(cell.eval_episodes, 5))
+    for i in tqdm(range(points), desc=f"{cell.agent}@{cell.env_id} s{cell.seed}", disable=not progress,
+                  leave=False, file=sys.stderr):
+        chunk = cell.budget * (i + 1) // points - done_steps
+        if chunk > 0:
+            agent.learn(total_timesteps=chunk, **({"reset_num_timesteps": False} if _accepts_reset(agent) and i else {}))
+            done_steps += chunk
+        scores = evaluate(agent, eval_env, curve_episodes, seed=10_000 + cell.seed)
+        curve.append({"steps": done_steps, "mean_normalized_performance": float(np.mean(scores))})
+    train_time = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    finals = evaluate(agent, eval_env, cell.eval_episodes, seed=cell.seed)
+    eval_time = time.perf_counter() - t1
+    env.close()
+    eval_env.close()
+    return {
+        "cell": {k: v for k, v in cell.__dict__.items()},
+        "final_normalized_performance": finals,
+        "learning_curve": curve,
+        "train_wall_time_s": train_time,
+        "eval_wall_time_s": eval_time,
+        "trained_steps": done_steps if trains else 0,
+        "environment": environment_info(),
+        "finished_at": time.strftime("%Y-%m-%d %H:%M:%S"),
+    }
+
+
+def _accepts_reset(agent: Any) -> bool:
+    import inspect
+
+    try:
+        return "reset_num_timesteps" in inspect.signature(agent.learn).parameters
+    except (TypeError, ValueError):
+        return False
+
+
+def run_grid(cells: list[Cell], out: Path, progress: bool = True, force: bool = False) -> list[Path]:
+    """Run every cell whose JSON is missing (all with ``force``); return the result paths."""
+    from tqdm import tqdm
+
+    paths = []
+    for cell in tqdm(cells, desc="cells", disable=not progress, file=sys.stderr):
+        path = out / f"{cell.key}.json"
+        paths.append(path)
+        if path.exists() and not force:
+            continue
+        result = run_cell(cell, progress=progress)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(".tmp")
+        tmp.write_text(json.dumps(result, indent=1))
+        tmp.replace(path)  # atomic: an interrupted run never leaves a half-written cell
+    return paths
+
+
+# ---------------------------------------------------------------------- CLI
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    p = argparse.ArgumentParser(prog="python -m benchmarks.run", description=__doc__.split("\n")[0])
+    p.add_argument("--suite", required=True, help=f"suite name {available_suites()} or path to a .json file")
+    p.add_argument("--agents", nargs="+", help="only these agents (names or package.module:factory)")
+    p.add_argument("--agent", action="append", default=[], help="add a third-party agent package.module:factory")
+    p.add_argument("--envs", nargs="+", help="only these env ids")
+    p.add_argument("--seeds", nargs="+", type=int, help="override the suite's seeds")
+    p.add_argument("--budget", type=int, help="override training budget (env steps)")
+    p.add_argument("--device", help="torch device for learning agents (cpu, cuda)")
+    p.add_argument("--out", default=str(DEFAULT_OUT), help="results folder (one JSON per cell)")
+    p.add_argument("--leaderboard", default=str(ROOT / "leaderboard.md"), help="markdown file to rewrite")
+    p.add_argument("--force", action="store_true", help="re-run finished cells")
+    p.add_argument("--no-progress", action="store_true")
+    return p.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    from benchmarks.leaderboard import write_leaderboard
+
+    args = parse_args(argv)
+    try:
+        suite = load_suite(args.suite)
+        cells = expand_cells(suite, agents=args.agents, envs=args.envs, seeds=args.seeds, budget=args.budget,
+                             device=args.device, extra_agents=args.agent)
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    out = Path(args.out)
+    run_grid(cells, out, progress=not args.no_progress, force=args.force)
+    command = "python -m benchmarks.run " + " ".join(argv if argv is not None else sys.argv[1:])
+    path = write_leaderboard(out, Path(args.leaderboard), command=command, suite=suite["name"])
+    print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,152 @@
+"""Simulation parameters of the particle engine.
+
+All quantities are SI (metres, seconds, kilograms); the world is z-up with the
+table top / ground plane at ``z = 0``.
+
+The constraint solver is position based (PBD, the FleX convention): every
+constraint type has a *stiffness* in ``[0, 1]``, the fraction of the constraint
+error removed each time the constraint is projected (once per solver iteration
+from each of its two particles).  ``1.0`` is as stiff as the iteration count
+allows; the FleX/SoftGym cloth used ``(stretch, bend, shear) = (0.8, 1.0, 0.9)``
+with 4 substeps x 30 iterations.  Because our defaults use far fewer iterations
+per frame than FleX did, the default stretch stiffness is 1.0 so that a hanging
+cloth stretches less than 10 % (the SoftGym cloth was criticised as too
+stretchy).  The equivalent XPBD compliance of a PBD stiffness ``k`` with ``n``
+iterations per substep of length ``h`` is roughly ``alpha = h**2 (1/k_n - 1)``
+with ``k_n = 1 - (1 - k)**n``; we keep the PBD form because it is what the
+reference parameters are expressed in.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+
+__all__ = ["SimParams", "GRASP_MODES"]
+
+GRASP_MODES = ("closest", "radius")
+
+
+@dataclass(frozen=True)
+class SimParams:
+    """Parameters of :class:`~lfd_envs.sim.ParticleSim` (immutable; use ``dataclasses.replace``).
+
+    Attributes:
+        frame_dt: Duration of one :meth:`ParticleSim.step` call in seconds (FleX: 0.01 s).
+        substeps: Substeps per frame; each substep has ``frame_dt / substeps`` seconds.
+        iterations: Gauss-Seidel solver iterations per substep.
+        gravity: Gravitational acceleration along +z in m/s^2 (negative: downwards).
+        particle_radius: Default contact radius (m) of cloth/rope particles against the
+            ground and static/rigid boxes; a resting cloth lies at ``z = particle_radius``
+            above the surface.  Also the default picker-threshold particle radius.
+        self_collision: Enable particle-particle collisions (cloth/rope self and mutual
+            collisions; rigid box particles use box-box contacts instead).
+        self_collision_distance: Minimum distance (m) between two colliding particles.
+            ``None`` (default) picks ``self_collision_spacing_factor`` x the rest spacing of
+            each cloth/rope, which keeps particles of one layer from slipping through the
+            grid cells of another.
+        self_collision_spacing_factor: See ``self_collision_distance`` (dimensionless).
+        self_collision_margin: Extra search radius for the neighbour lists, as a fraction
+            of the collision distance (dimensionless).
+        self_collision_interval: Rebuild the self-collision neighbour lists every this many
+            substeps (1 = every substep, most robust).
+        max_neighbors: Maximum self-collision neighbours kept per particle (closest first).
+        stretch_stiffness: PBD stiffness in [0, 1] of the stretch constraints (grid
+            neighbours / rope segments).
+        shear_stiffness: PBD stiffness in [0, 1] of the cloth diagonal constraints.
+        bend_stiffness: PBD stiffness in [0, 1] of the distance-2 bend constraints.
+        static_friction: Coulomb static friction coefficient against ground and boxes.
+        dynamic_friction: Coulomb dynamic friction coefficient against ground and boxes
+            (FleX cloth: 0.75).
+        damping: Viscous velocity damping in 1/s (FleX cloth: 1.0); ``v *= 1 - damping*h``.
+        max_speed: Particle speed clamp in m/s (the maximum picker speed is 8 m/s).
+        picker_radius: Radius (m) of a picker sphere (rendering; SoftGym cloth: 0.05).
+        grasp_mode: ``"closest"`` attaches the single closest free particle within
+            ``grasp_radius`` (SoftGym); ``"radius"`` attaches all free particles within it.
+        grasp_radius: Grasp distance from the picker centre in metres (SoftGym cloth:
+            picker_threshold + picker_radius + particle_radius = 0.06125).
+        rigid_weight_kinematic: Shape-matching weight of a grasped/pinned rigid-box particle
+            relative to a free one (dimensionless, >= 1).
+    """
+
+    frame_dt: float = 0.01
+    substeps: int = 2
+    iterations: int = 5
+    gravity: float = -9.81
+    particle_radius: float = 0.00625
+    self_collision: bool = True
+    self_collision_distance: float | None = None
+    self_collision_spacing_factor: float = 0.75
+    self_collision_margin: float = 0.5
+    self_collision_interval: int = 1
+    max_neighbors: int = 16
+    stretch_stiffness: float = 1.0
+    shear_stiffness: float = 0.9
+    bend_stiffness: float = 1.0
+    static_friction: float = 0.8
+    dynamic_friction: float = 0.75
+    damping: float = 1.0
+    max_speed: float = 10.0
+    picker_radius: float = 0.05
+    grasp_mode: str = "closest"
+    grasp_radius: float = 0.06125
+    rigid_weight_kinematic: float = 1000.0
+
+    def __post_init__(self) -> None:
+        def _finite(name: str) -> float:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise TypeError(f"SimParams.{name} must be a number, got {type(value).__name__}")
+            if not math.isfinite(value):
+                raise ValueError(f"SimParams.{name} must be finite, got {value}")
+            return float(value)
+
+        def _int(name: str, low: int) -> None:
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise TypeError(f"SimParams.{name} must be an int, got {type(value).__name__}")
+            if value < low:
+                raise ValueError(f"SimParams.{name} must be >= {low}, got {value}")
+
+        for name in ("frame_dt", "particle_radius", "max_speed", "grasp_radius"):
+            if _finite(name) <= 0.0:
+                raise ValueError(f"SimParams.{name} must be > 0, got {getattr(self, name)}")
+        for name in ("self_collision_spacing_factor",):
+            if _finite(name) <= 0.0:
+                raise ValueError(f"SimParams.{name} must be > 0, got {getattr(self, name)}")
+        for name in ("picker_radius", "damping", "static_friction", "dynamic_friction",
+                     "self_collision_margin"):
+            if _finite(name) < 0.0:
+                raise ValueError(f"SimParams.{name} must be >= 0, got {getattr(self, name)}")
+        _finite("gravity")
+        for name in ("stretch_stiffness", "shear_stiffness", "bend_stiffness"):
+            v = _finite(name)
+            if not 0.0 <= v <= 1.0:
+                raise ValueError(f"SimParams.{name} is a PBD stiffness and must lie in [0, 1], got {v}")
+        if _finite("rigid_weight_kinematic") < 1.0:
+            raise ValueError("SimParams.rigid_weight_kinematic must be >= 1")
+        _int("substeps", 1)
+        _int("iterations", 1)
+        _int("self_collision_interval", 1)
+        _int("max_neighbors", 1)
+        if not isinstance(self.self_collision, bool):
+            raise TypeError("SimParams.self_collision must be a bool")
+        if self.self_collision_distance is not None:
+            if _finite("self_collision_distance") <= 0.0:
+                raise ValueError("SimParams.self_collision_distance must be > 0 or None")
+        if self.grasp_mode not in GRASP_MODES:
+            raise ValueError(f"SimParams.grasp_mode must be one of {GRASP_MODES}, got {self.grasp_mode!r}")
+
+    @property
+    def substep_dt(self) -> float:
+        """Duration of one substep in seconds."""
+        return self.frame_dt / self.substeps
+
+    def to_dict(self) -> dict:
+        """Plain-dict view (for logging / configs)."""
+        return asdict(self)
+
+    @classmethod
+    def field_names(cls) -> tuple[str, ...]:
+        """Names of all parameters."""
+        return tuple(f.name for f in fields(cls))
