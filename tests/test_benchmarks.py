@@ -85,3 +85,18 @@ def test_bad_agent_and_env_errors(tmp_path, capsys):
     assert "valid:" in capsys.readouterr().err
     with pytest.raises(ValueError, match="valid suites are"):
         bench.load_suite("no-such-suite")
+
+
+def test_readme_third_party_example_runs(tmp_path, monkeypatch):
+    """The README's third-party agent example runs as written through the harness."""
+    text = README.read_text()
+    code = re.search(r"```python\n(# my_agents.py.*?)```", text, re.S).group(1)
+    (tmp_path / "my_agents.py").write_text(code)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    suite = json.loads(_suite(tmp_path).read_text())
+    suite["cells"][0]["agents"] = {"random": {}}
+    (tmp_path / "s.json").write_text(json.dumps(suite))
+    out = tmp_path / "res"
+    assert bench.main(["--suite", str(tmp_path / "s.json"), "--agent", "my_agents:make_agent", "--out", str(out),
+                       "--leaderboard", str(tmp_path / "lb.md"), "--no-progress"]) == 0
+    assert "my_agents:make_agent" in (tmp_path / "lb.md").read_text()
