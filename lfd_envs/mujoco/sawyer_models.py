@@ -9,8 +9,9 @@ in the task modules, following the MoPA-RL parameters (SPEC §5):
 * the arm's torque motors are replaced by position servos, kp = (500, 500, 200, 200, 50, 50, 50),
   force limits (100, 100, 75, 75, 50, 50, 50) N·m, joint damping (50, 50, 25, 25, 10, 10, 10),
   armature 0.1, no joint friction;
-* arm (and gripper) bodies get MuJoCo's built-in gravity compensation (``gravcomp=1``), i.e.
-  gravity is cancelled inside every 2 ms physics substep;
+* gravity compensation is switched on by the env (MuJoCo's body ``gravcomp`` on every body
+  that moves with the arm, i.e. inside every 2 ms physics substep);
+* the robot's collision cylinders become capsules (analytic collisions, MoPA-RL's choice);
 * the robot base sits at ``ROBOT_BASE_POS`` = (0, 0, 0.95), as in MoPA-RL.
 
 Names in the compiled model keep robosuite's prefixes (``robot0_right_j0`` ...,
@@ -96,7 +97,7 @@ def _arm_actuators(gripper_kp: float) -> str:
 
 
 def _prepare_robot(root: ET.Element, attach_to_eef: str, extra_robot_excludes: Sequence[str]) -> ET.Element:
-    """Return the robot's root body with MoPA joint dynamics and gravity compensation."""
+    """Return the robot's root body with MoPA joint dynamics and hidden collision geoms."""
     worldbody = root.find("worldbody")
     assert worldbody is not None
     bodies = list(worldbody)
@@ -109,11 +110,13 @@ def _prepare_robot(root: ET.Element, attach_to_eef: str, extra_robot_excludes: S
             joint.set("damping", f"{damping[name]:g}")
             joint.set("armature", f"{ARM_ARMATURE:g}")
             joint.set("frictionloss", "0")
-    for body in robot_body.iter("body"):
-        body.set("gravcomp", "1")
     for geom in robot_body.iter("geom"):  # collision geoms: group 3 (hidden in renders)
         if geom.get("contype", "1") != "0" or geom.get("conaffinity", "1") != "0":
             geom.set("group", "3")
+            if geom.get("type") == "cylinder":  # capsules as in MoPA-RL: analytic, faster contacts
+                radius, half = (float(v) for v in geom.get("size").split()[:2])
+                geom.set("type", "capsule")
+                geom.set("size", f"{radius:g} {max(half - radius, 1e-3):g}")
     for site in robot_body.iter("site"):  # robosuite's marker sites: hidden
         site.set("group", "4")
     if attach_to_eef:
@@ -250,6 +253,6 @@ def work_table(pos: Sequence[float], half: Sequence[float], name: str = "table")
         f'<geom name="{name}_leg{i}" class="scene" type="cylinder" size="0.025 {leg_half:.4f}" '
         f'pos="{sx * (hx - 0.04):.4f} {sy * (hy - 0.04):.4f} {-hz - leg_half:.4f}" '
         f'contype="0" conaffinity="0"/>'
-        for i, (sx, sy) in enumerate([(1, 1), (1, -1), (-1, 1), (-1, -1)]))
+        for i, (sx, sy) in enumerate([(1, 1), (1, -1), (-1, 1), (-1, -1)])) if leg_half > 0.005 else ""
     top = box(f"{name}_top", (0, 0, 0), half, cls="scene")
     return f'<body name="{name}" pos="{_fmt((pos[0], pos[1], pos[2]))}">{top}{legs}</body>'

@@ -29,6 +29,10 @@ wp.set_module_options({"enable_backward": False})
 BIG = wp.constant(1.0e30)
 EPS_T = wp.constant(1.0e-5)
 
+#: Spheres/capsules are tested in clusters of this many consecutive primitives, each cluster
+#: with its own per-world bounding box (the host computes the boxes).
+ROUND_CLUSTER = wp.constant(8)
+
 KIND_NONE = wp.constant(0)
 KIND_GROUND = wp.constant(1)
 KIND_BOX = wp.constant(2)
@@ -50,6 +54,9 @@ class SceneData:
     has_mesh: int
     mesh_id: wp.uint64
     tris_per_world: int
+    smooth: int  # interpolate vertex normals (1) or flat face normals (0)
+    mesh_indices: wp.array(dtype=int)
+    vertex_normals: wp.array(dtype=wp.vec3)
     face_front: wp.array(dtype=wp.vec3)
     face_back: wp.array(dtype=wp.vec3)
     # round primitives (spheres and capsules), per layer
@@ -58,6 +65,8 @@ class SceneData:
     round_pt_stride: wp.array(dtype=int)
     round_prim_off: wp.array(dtype=int)
     round_prim_cnt: wp.array(dtype=int)
+    round_bound_off: wp.array(dtype=int)
+    round_bound_layer: wp.array(dtype=int)  # layer of each cluster bound (for round_cluster_bounds)
     round_lo: wp.array(dtype=wp.vec3)
     round_hi: wp.array(dtype=wp.vec3)
     pts: wp.array(dtype=wp.vec3)
@@ -207,17 +216,21 @@ def occluded(scene: SceneData, ro: wp.vec3, rd: wp.vec3, w: int, root: int, t_ma
         if wp.mesh_query_ray_anyhit(scene.mesh_id, ro, rd, t_max, root):
             return True
     for L in range(scene.n_round_layers):
-        g = L * W + w
-        if ray_aabb(ro, inv_d, scene.round_lo[g], scene.round_hi[g], t_max):
-            base = scene.round_pt_off[L] + w * scene.round_pt_stride[L]
-            p0 = scene.round_prim_off[L]
-            for k in range(scene.round_prim_cnt[L]):
-                q = p0 + k
-                t = ray_capsule(
-                    ro, rd, scene.pts[base + scene.prim_a[q]], scene.pts[base + scene.prim_b[q]], scene.prim_r[q]
-                )
-                if t < t_max:
-                    return True
+        base = scene.round_pt_off[L] + w * scene.round_pt_stride[L]
+        p0 = scene.round_prim_off[L]
+        cnt = scene.round_prim_cnt[L]
+        ncl = (cnt + ROUND_CLUSTER - 1) // ROUND_CLUSTER
+        gb = scene.round_bound_off[L] + w * ncl
+        for cl in range(ncl):
+            if ray_aabb(ro, inv_d, scene.round_lo[gb + cl], scene.round_hi[gb + cl], t_max):
+                k0 = cl * ROUND_CLUSTER
+                for k in range(k0, wp.min(k0 + ROUND_CLUSTER, cnt)):
+                    q = p0 + k
+                    t = ray_capsule(
+                        ro, rd, scene.pts[base + scene.prim_a[q]], scene.pts[base + scene.prim_b[q]], scene.prim_r[q]
+                    )
+                    if t < t_max:
+                        return True
     return False
 
 
@@ -258,6 +271,8 @@ def shade_ray(scene: SceneData, view: ViewData, ro: wp.vec3, rd: wp.vec3, w: int
     # cloth mesh
     mesh_face = int(0)
     mesh_sign = float(1.0)
+    mesh_u = float(0.0)
+    mesh_v = float(0.0)
     if scene.has_mesh != 0:
         mq = wp.mesh_query_ray(scene.mesh_id, ro, rd, best_t, root)
         if mq.result:
@@ -266,24 +281,30 @@ def shade_ray(scene: SceneData, view: ViewData, ro: wp.vec3, rd: wp.vec3, w: int
                 kind = KIND_MESH
                 mesh_face = mq.face
                 mesh_sign = mq.sign
+                mesh_u = mq.u
+                mesh_v = mq.v
                 hit_normal = mq.normal
 
     # spheres and capsules
     for L in range(scene.n_round_layers):
-        g = L * W + w
-        if ray_aabb(ro, inv_d, scene.round_lo[g], scene.round_hi[g], best_t):
-            base = scene.round_pt_off[L] + w * scene.round_pt_stride[L]
-            p0 = scene.round_prim_off[L]
-            for k in range(scene.round_prim_cnt[L]):
-                q = p0 + k
-                t = ray_capsule(
-                    ro, rd, scene.pts[base + scene.prim_a[q]], scene.pts[base + scene.prim_b[q]], scene.prim_r[q]
-                )
-                if t < best_t:
-                    best_t = t
-                    kind = KIND_ROUND
-                    hit_idx = q
-                    hit_base = base
+        base = scene.round_pt_off[L] + w * scene.round_pt_stride[L]
+        p0 = scene.round_prim_off[L]
+        cnt = scene.round_prim_cnt[L]
+        ncl = (cnt + ROUND_CLUSTER - 1) // ROUND_CLUSTER
+        gb = scene.round_bound_off[L] + w * ncl
+        for cl in range(ncl):
+            if ray_aabb(ro, inv_d, scene.round_lo[gb + cl], scene.round_hi[gb + cl], best_t):
+                k0 = cl * ROUND_CLUSTER
+                for k in range(k0, wp.min(k0 + ROUND_CLUSTER, cnt)):
+                    q = p0 + k
+                    t = ray_capsule(
+                        ro, rd, scene.pts[base + scene.prim_a[q]], scene.pts[base + scene.prim_b[q]], scene.prim_r[q]
+                    )
+                    if t < best_t:
+                        best_t = t
+                        kind = KIND_ROUND
+                        hit_idx = q
+                        hit_base = base
 
     if kind == KIND_NONE:
         return view.background
@@ -319,10 +340,24 @@ def shade_ray(scene: SceneData, view: ViewData, ro: wp.vec3, rd: wp.vec3, w: int
         hit_normal = wp.normalize(p - (a + s * ba))
         hit_color = scene.prim_color[hit_idx]
 
-    # two-sided: the shading normal faces the viewer
+    # two-sided: the geometric normal faces the viewer
     if wp.dot(hit_normal, rd) > 0.0:
         hit_normal = -hit_normal
-    ndl = wp.max(wp.dot(hit_normal, view.light_dir), 0.0)
+    shade_normal = hit_normal
+    if kind == KIND_MESH and scene.smooth != 0:
+        f3 = mesh_face * 3
+        ns = (
+            mesh_u * scene.vertex_normals[scene.mesh_indices[f3]]
+            + mesh_v * scene.vertex_normals[scene.mesh_indices[f3 + 1]]
+            + (1.0 - mesh_u - mesh_v) * scene.vertex_normals[scene.mesh_indices[f3 + 2]]
+        )
+        len_ns = wp.length(ns)
+        if len_ns > 1.0e-12:
+            ns = ns / len_ns
+            if wp.dot(ns, hit_normal) < 0.0:
+                ns = -ns
+            shade_normal = ns
+    ndl = wp.max(wp.dot(shade_normal, view.light_dir), 0.0)
     if view.shadows != 0 and ndl > 0.0:
         if occluded(scene, p + hit_normal * 1.0e-4, view.light_dir, w, root, view.max_dist):
             ndl = 0.0
@@ -330,6 +365,54 @@ def shade_ray(scene: SceneData, view: ViewData, ro: wp.vec3, rd: wp.vec3, w: int
 
 
 # ---------------------------------------------------------------------------- kernels
+@wp.kernel
+def round_cluster_bounds(
+    scene: SceneData,
+    lo: wp.array(dtype=wp.vec3),
+    hi: wp.array(dtype=wp.vec3),
+):
+    """Bounding box of each cluster of ROUND_CLUSTER spheres/capsules, per layer and world."""
+    g = wp.tid()
+    L = scene.round_bound_layer[g]
+    cnt = scene.round_prim_cnt[L]
+    ncl = (cnt + ROUND_CLUSTER - 1) // ROUND_CLUSTER
+    rel = g - scene.round_bound_off[L]
+    w = rel // ncl
+    cl = rel - w * ncl
+    base = scene.round_pt_off[L] + w * scene.round_pt_stride[L]
+    p0 = scene.round_prim_off[L]
+    k0 = cl * ROUND_CLUSTER
+    b_lo = wp.vec3(BIG)
+    b_hi = wp.vec3(-BIG)
+    for k in range(k0, wp.min(k0 + ROUND_CLUSTER, cnt)):
+        q = p0 + k
+        a = scene.pts[base + scene.prim_a[q]]
+        b = scene.pts[base + scene.prim_b[q]]
+        r = wp.vec3(scene.prim_r[q])
+        b_lo = wp.min(b_lo, wp.min(a, b) - r)
+        b_hi = wp.max(b_hi, wp.max(a, b) + r)
+    lo[g] = b_lo
+    hi[g] = b_hi
+
+
+@wp.kernel
+def accumulate_vertex_normals(
+    points: wp.array(dtype=wp.vec3),
+    indices: wp.array(dtype=int),
+    normals: wp.array(dtype=wp.vec3),
+):
+    """Area-weighted vertex normals (``normals`` must be zeroed first; normalised when used)."""
+    f = wp.tid()
+    i = indices[3 * f]
+    j = indices[3 * f + 1]
+    k = indices[3 * f + 2]
+    p = points[i]
+    n = wp.cross(points[j] - p, points[k] - p)
+    wp.atomic_add(normals, i, n)
+    wp.atomic_add(normals, j, n)
+    wp.atomic_add(normals, k, n)
+
+
 @wp.kernel
 def render_kernel(
     scene: SceneData,

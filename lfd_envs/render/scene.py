@@ -219,10 +219,14 @@ class BoxLayer:
         centers: numpy ``(W, B, 3)`` (or ``(B, 3)`` = same in every world) or flat
             ``wp.array(dtype=wp.vec3)`` of ``W * B`` entries.
         half_extents: ``(B, 3)`` or ``(W, B, 3)`` half sizes along the box axes (> 0); ``(3,)``
-            for all boxes.
+            for all boxes; or a flat ``wp.array`` of vec3 with ``B`` or ``W * B`` entries.
         rotations: ``None`` (axis aligned), rotation matrices ``(W, B, 3, 3)`` / ``(B, 3, 3)``
             (columns are the box axes in world frame), or unit quaternions ``(W, B, 4)`` /
-            ``(B, 4)`` in Warp's ``(x, y, z, w)`` order.
+            ``(B, 4)`` in Warp's ``(x, y, z, w)`` order; or a flat ``wp.array`` of ``wp.mat33``
+            or ``wp.quat`` with ``W * B`` entries (the particle engine's layout).
+
+    Box data is small: warp inputs are copied to the host and the layer is re-packed only when
+    its content changes (static boxes cost nothing per frame).
         colors: One colour or ``(B, 3)``.
     """
 

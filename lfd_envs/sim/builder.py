@@ -33,7 +33,6 @@ STRETCH = 0
 SHEAR = 1
 BEND = 2
 
-NUM_COLORS = 5  # particle colours used by the Gauss-Seidel solver
 
 
 def _vec3(value, name: str) -> np.ndarray:
@@ -171,7 +170,6 @@ class _Particles:
     obj: list = field(default_factory=list)
     rest: list = field(default_factory=list)
     box: list = field(default_factory=list)
-    color: list = field(default_factory=list)
 
 
 class SceneBuilder:
@@ -187,7 +185,10 @@ class SceneBuilder:
 
     def __init__(self) -> None:
         self._p = _Particles()
-        self._cons: list[tuple[int, int, float, int]] = []  # (i, j, rest, type)
+        # constraint chunks: (i, j, rest, type, colour) arrays; no two constraints of one colour
+        # share a particle (graph colouring for the Gauss-Seidel solver)
+        self._cons: list[tuple[np.ndarray, ...]] = []
+        self._cache: dict | None = None
         self._static_boxes: list[StaticBox] = []
         self._rigid: list[dict] = []
         self._num_objects = 0
@@ -209,7 +210,8 @@ class SceneBuilder:
     # ------------------------------------------------------------------ helpers
     def _add_particles(self, pos: np.ndarray, inv_mass: float, radius: float | None,
                        sc_dist: float | None, sc_spacing: float, obj: int, rest: np.ndarray,
-                       box: int, colors: np.ndarray, self_collide: bool) -> int:
+                       box: int, self_collide: bool) -> int:
+        self._cache = None
         start = self.num_particles
         n = pos.shape[0]
         p = self._p
@@ -225,8 +227,14 @@ class SceneBuilder:
         p.obj.extend([obj] * n)
         p.rest.extend(rest.tolist())
         p.box.extend([box] * n)
-        p.color.extend(colors.tolist())
         return start
+
+    def _add_constraints(self, ci: np.ndarray, cj: np.ndarray, rest: float, typ: int,
+                         color: np.ndarray) -> None:
+        ci = np.asarray(ci, np.int32)
+        self._cons.append((ci, np.asarray(cj, np.int32), np.full(ci.shape, float(rest)),
+                           np.full(ci.shape, typ, np.int32), np.asarray(color, np.int32)))
+        self._cache = None
 
     def _new_object(self) -> int:
         self._num_objects += 1
@@ -272,29 +280,31 @@ class SceneBuilder:
         local = np.stack([ii.ravel() * dx - 0.5 * size_x, jj.ravel() * dy - 0.5 * size_y,
                           np.zeros(nx * ny)], axis=1)
         pos = local @ _rot_z(float(yaw)).T + center
-        colors = (ii.ravel() + 3 * jj.ravel()) % NUM_COLORS
         obj = self._new_object()
         start = self._add_particles(pos, nx * ny / mass, radius, collision_distance,
-                                    min(dx, dy), obj, local, -1, colors, self_collision)
+                                    min(dx, dy), obj, local, -1, self_collision)
 
         def idx(j, i):
             return start + j * nx + i
 
+        grid = np.arange(nx * ny).reshape(ny, nx) + start
+        rows = np.broadcast_to(np.arange(ny)[:, None], (ny, nx))
+        cols = np.broadcast_to(np.arange(nx)[None, :], (ny, nx))
         diag = math.hypot(dx, dy)
-        cons = self._cons
-        for j in range(ny):
-            for i in range(nx):
-                if i + 1 < nx:
-                    cons.append((idx(j, i), idx(j, i + 1), dx, STRETCH))
-                if j + 1 < ny:
-                    cons.append((idx(j, i), idx(j + 1, i), dy, STRETCH))
-                if i + 1 < nx and j + 1 < ny:
-                    cons.append((idx(j, i), idx(j + 1, i + 1), diag, SHEAR))
-                    cons.append((idx(j, i + 1), idx(j + 1, i), diag, SHEAR))
-                if bend and i + 2 < nx:
-                    cons.append((idx(j, i), idx(j, i + 2), 2 * dx, BEND))
-                if bend and j + 2 < ny:
-                    cons.append((idx(j, i), idx(j + 2, i), 2 * dy, BEND))
+        fams = [
+            # (i-side, j-side, rest, type, parity) ; colour = 2*family + parity
+            (grid[:, :-1], grid[:, 1:], dx, STRETCH, cols[:, :-1] % 2),
+            (grid[:-1, :], grid[1:, :], dy, STRETCH, rows[:-1, :] % 2),
+            (grid[:-1, :-1], grid[1:, 1:], diag, SHEAR, rows[:-1, :-1] % 2),
+            (grid[:-1, 1:], grid[1:, :-1], diag, SHEAR, rows[:-1, 1:] % 2),
+        ]
+        if bend:
+            fams += [
+                (grid[:, :-2], grid[:, 2:], 2 * dx, BEND, (cols[:, :-2] // 2) % 2),
+                (grid[:-2, :], grid[2:, :], 2 * dy, BEND, (rows[:-2, :] // 2) % 2),
+            ]
+        for f, (gi, gj, rest, typ, par) in enumerate(fams):
+            self._add_constraints(gi.ravel(), gj.ravel(), rest, typ, 2 * f + par.ravel())
         a = (jj[:-1, :-1] * nx + ii[:-1, :-1]).ravel() + start
         b = a + 1
         c = a + nx + 1
@@ -345,12 +355,11 @@ class SceneBuilder:
         local = np.stack([s, np.zeros(n), np.zeros(n)], 1)
         obj = self._new_object()
         first = self._add_particles(pos, n / mass, radius, collision_distance, seg, obj, local,
-                                    -1, np.arange(n) % 3, self_collision)
+                                    -1, self_collision)
         rest = seg * (1.0 + give)
-        for k in range(n - 1):
-            self._cons.append((first + k, first + k + 1, rest, STRETCH))
-        for k in range(n - 2):
-            self._cons.append((first + k, first + k + 2, 2 * rest, BEND))
+        k = np.arange(n)
+        self._add_constraints(first + k[:-1], first + k[1:], rest, STRETCH, k[:-1] % 2)
+        self._add_constraints(first + k[:-2], first + k[2:], 2 * rest, BEND, 2 + (k[:-2] // 2) % 2)
         h = RopeHandle(start=first, n=n, segment_length=seg)
         self.ropes.append(h)
         return h
@@ -369,6 +378,7 @@ class SceneBuilder:
             raise ValueError(f"half_extents must be > 0, got {he}")
         if not math.isfinite(float(yaw)):
             raise ValueError("yaw must be finite")
+        self._cache = None
         self._static_boxes.append(StaticBox(tuple(map(float, c)), tuple(map(float, he)), float(yaw)))
         return len(self._static_boxes) - 1
 
@@ -413,7 +423,7 @@ class SceneBuilder:
         box_index = len(self._rigid)
         obj = self._new_object()
         start = self._add_particles(pos, len(local) / mass, r, None, 1.0, obj, local, box_index,
-                                    np.zeros(len(local), np.int64), False)
+                                    False)
         self._rigid.append(dict(start=start, count=len(local), center=c, half_extents=he,
                                 yaw=float(yaw), mass=mass))
         h = RigidBoxHandle(box=box_index, start=start, count=len(local),
@@ -432,6 +442,7 @@ class SceneBuilder:
             if not 0 <= i < n:
                 raise IndexError(f"particle index {i} out of range [0, {n})")
             self._p.inv_mass[i] = 0.0
+        self._cache = None
 
     # ------------------------------------------------------------------ export
     def _export(self) -> dict:
@@ -440,29 +451,20 @@ class SceneBuilder:
         if n == 0:
             raise ValueError("SceneBuilder has no particles; add a cloth, rope or rigid box")
         p = self._p
-        cons = self._cons
-        # CSR adjacency: for each particle, its constraints with the partner index
-        if cons:
-            ci = np.array([c[0] for c in cons], np.int64)
-            cj = np.array([c[1] for c in cons], np.int64)
-            cr = np.array([c[2] for c in cons], np.float64)
-            ct = np.array([c[3] for c in cons], np.int64)
+        if self._cache is not None:
+            return self._cache
+        if self._cons:
+            ci, cj, cr, ct, ccol = (np.concatenate([c[k] for c in self._cons]) for k in range(5))
         else:
-            ci = cj = ct = np.zeros(0, np.int64)
+            ci = cj = ct = ccol = np.zeros(0, np.int32)
             cr = np.zeros(0, np.float64)
-        src = np.concatenate([ci, cj])
-        dst = np.concatenate([cj, ci])
-        rest = np.concatenate([cr, cr])
-        typ = np.concatenate([ct, ct])
-        order = np.lexsort((dst, src))  # stable deterministic order: by particle, then partner
-        src, dst, rest, typ = src[order], dst[order], rest[order], typ[order]
-        offsets = np.zeros(n + 1, np.int64)
-        np.add.at(offsets, src + 1, 1)
-        offsets = np.cumsum(offsets)
-        color = np.asarray(p.color, np.int32)
-        # sanity: no constraint between particles of the same colour
-        if len(src) and np.any(color[src] == color[dst]):
-            raise RuntimeError("internal error: constraint graph colouring is invalid")
+        order = np.argsort(ccol, kind="stable")
+        ci, cj, cr, ct, ccol = ci[order], cj[order], cr[order], ct[order], ccol[order]
+        if len(ci):
+            # validity of the colouring: a particle appears at most once per colour
+            key = np.concatenate([ccol.astype(np.int64) * n + ci, ccol.astype(np.int64) * n + cj])
+            if np.unique(key).size != key.size:
+                raise RuntimeError("internal error: constraint colouring is invalid")
         boxes = self._rigid
         rot = [_rot_z(b["yaw"]) for b in boxes]
         sb = self._static_boxes
@@ -475,11 +477,11 @@ class SceneBuilder:
             obj=np.asarray(p.obj, np.int32),
             rest=np.asarray(p.rest, np.float64).reshape(n, 3),
             box=np.asarray(p.box, np.int32),
-            color=color,
-            adj_offsets=offsets.astype(np.int32),
-            adj_j=dst.astype(np.int32),
-            adj_type=typ.astype(np.int32),
-            adj_rest=rest,
+            con_i=ci,
+            con_j=cj,
+            con_type=ct,
+            con_color=ccol.astype(np.int32),
+            con_rest=cr,
             rigid_start=np.array([b["start"] for b in boxes], np.int32),
             rigid_count=np.array([b["count"] for b in boxes], np.int32),
             rigid_center=np.array([b["center"] for b in boxes], np.float64).reshape(-1, 3),
@@ -489,13 +491,14 @@ class SceneBuilder:
             static_half_extents=np.array([s.half_extents for s in sb], np.float64).reshape(-1, 3),
             static_rot=np.array([s.rotation() for s in sb], np.float64).reshape(-1, 3, 3),
         )
+        self._cache = out
         return out
 
     def topology_key(self) -> str:
         """Hash of everything that must match across the worlds of one batch."""
         e = self._export()
         h = hashlib.sha1()
-        for k in ("obj", "box", "color", "adj_offsets", "adj_j", "adj_type", "rigid_start",
+        for k in ("obj", "box", "con_i", "con_j", "con_type", "con_color", "rigid_start",
                   "rigid_count"):
             h.update(k.encode())
             h.update(np.ascontiguousarray(e[k]).tobytes())

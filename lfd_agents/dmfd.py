@@ -1,0 +1,437 @@
+"""DMfD: Deformable Manipulation from Demonstrations, as a Stable-Baselines3 off-policy algorithm.
+
+Off-policy actor-critic whose replay buffer starts full of demonstrations (SPEC §6, thesis
+ch. 4, Algorithm 2):
+
+* critics: twin Q, target ``y = r + γ(1-d)(min Q'(s', a') − α_t log π(a'|s'))`` with
+  ``a' ~ π(·|s')`` (``target_ent_coef`` α_t = 0 in the original code), loss = sum of the MSEs;
+* actor: ``L_π = (1 − w_E)·L_A + w_E·L_E`` with
+
+  - ``L_A = mean_B[−log π(a_B|o) · w]``, ``w = B·softmax_B(A/λ)`` (batch-normalised exp(A/λ)),
+    ``A = min Q(s, a_B) − min Q(s, a_π)`` (detached), ``a_B`` the stored action;
+  - ``L_E = mean_B[α log π(a_π|o) − min Q(s, a_π)]`` with ``a_π ~ π(·|o)`` (reparameterised);
+
+* probabilistic reference-state initialisation with an imitation reward
+  (:class:`lfd_agents.rsi.ReferenceStateInit`, probability 0.2 for state and 0.3 for image
+  observations by default, 0 disables);
+* image observations: DMfD CNN encoder and pad-2 random-crop augmentation of ``obs`` and
+  ``next_obs`` in every sampled batch; with ``"state+image"`` observations the actor sees only
+  the image and the critics see state and image (asymmetric actor-critic).
+
+Defaults follow SPEC §6 / thesis Table D.9: 1024-1024 MLPs, γ = 0.9, w_E = 0.1, α = 0.5,
+batch 256, buffer 600k; λ = 2, lr 3e-4, τ = 0.005, actor weight decay 1e-4 from the original code.
+
+Example::
+
+    from lfd_agents import DMfD
+    model = DMfD("MlpPolicy", env, demonstrations="datasets/ClothFoldDiagonalPinned-state")
+    model.learn(100_000)
+    action, _ = model.predict(obs, deterministic=True)
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections import defaultdict
+from typing import Any, ClassVar, Sequence
+
+import gymnasium as gym
+import numpy as np
+import torch as th
+import torch.nn.functional as F
+from gymnasium import spaces
+from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+from stable_baselines3.common.policies import BasePolicy, ContinuousCritic
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, FlattenExtractor
+from stable_baselines3.common.type_aliases import GymEnv, ReplayBufferSamples, Schedule
+from stable_baselines3.common.utils import polyak_update
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
+from torch import nn
+
+from lfd_agents.augment import augment_observations, image_keys
+from lfd_agents.demos import episodes_with_states, fill_replay_buffer, load_episodes
+from lfd_agents.networks import GaussianActor, ImageEncoder, KeySubsetExtractor, log_prob
+from lfd_agents.rsi import ReferenceStateInit
+
+DEFAULT_NET_ARCH = (1024, 1024)
+
+
+# ----------------------------------------------------------------------------------- loss terms
+def awr_weights(advantages: th.Tensor, temperature: float) -> th.Tensor:
+    """Batch-normalised exp(A/λ): ``B · softmax(A/λ)`` over the batch (mean weight 1)."""
+    if temperature <= 0:
+        raise ValueError(f"temperature must be > 0, got {temperature}")
+    return th.softmax(advantages / temperature, dim=0) * advantages.shape[0]
+
+
+def dmfd_actor_loss(logp_buffer: th.Tensor, advantages: th.Tensor, logp_pi: th.Tensor, q_pi: th.Tensor, *,
+                    temperature: float, ent_coef: float, entropy_weight: float) -> dict[str, th.Tensor]:
+    """DMfD actor loss from per-sample terms (all shape (B,)).
+
+    Returns a dict with ``loss`` = (1 − w_E)·L_A + w_E·L_E, ``awr_loss`` (L_A), ``entropy_loss``
+    (L_E) and the detached ``weights``.
+    """
+    weights = awr_weights(advantages.detach(), temperature).detach()
+    l_a = -(logp_buffer * weights).mean()
+    l_e = (ent_coef * logp_pi - q_pi).mean()
+    return {"loss": (1.0 - entropy_weight) * l_a + entropy_weight * l_e, "awr_loss": l_a,
+            "entropy_loss": l_e, "weights": weights}
+
+
+def td_target(rewards: th.Tensor, dones: th.Tensor, next_q: th.Tensor, next_logp: th.Tensor, *,
+              gamma: float, target_ent_coef: float) -> th.Tensor:
+    """Bellman target ``r + γ(1 − d)(Q'(s', a') − α_t log π(a'|s'))`` (all shape (B,))."""
+    return rewards + (1.0 - dones) * gamma * (next_q - target_ent_coef * next_logp)
+
+
+# ----------------------------------------------------------------------------------- policies
+def _resolve_actor_keys(space: spaces.Space, actor_keys: Sequence[str] | str | None) -> list[str] | None:
+    if not isinstance(space, spaces.Dict):
+        return None
+    if actor_keys == "auto":
+        keys = list(space.spaces)
+        return ["image"] if "image" in keys and len(keys) > 1 else None
+    return None if actor_keys is None else list(actor_keys)
+
+
+class DMfDPolicy(BasePolicy):
+    """Gaussian actor + twin critics (+ target critics) with separate features extractors.
+
+    Args:
+        observation_space, action_space, lr_schedule: given by the algorithm.
+        net_arch: hidden sizes, shared by actor and critics, or ``dict(pi=[...], qf=[...])``.
+        activation_fn: MLP activation (ReLU for state, LeakyReLU for image policies).
+        features_extractor_class / features_extractor_kwargs: observation encoder.
+        actor_keys: Dict observations only — keys the actor sees; ``"auto"`` gives the actor just
+            ``"image"`` when the observation also has other keys (asymmetric actor-critic); the
+            critics always see every key.
+        actor_weight_decay: Adam weight decay of the actor (1e-4 in DMfD).
+        n_critics: number of Q networks (2).
+        log_std_bounds: bounds of the state-independent log-std.
+    """
+
+    actor: GaussianActor
+    critic: ContinuousCritic
+    critic_target: ContinuousCritic
+
+    def __init__(self, observation_space: spaces.Space, action_space: spaces.Box, lr_schedule: Schedule,
+                 net_arch: Sequence[int] | dict[str, Sequence[int]] | None = None,
+                 activation_fn: type[nn.Module] = nn.ReLU,
+                 features_extractor_class: type[BaseFeaturesExtractor] = FlattenExtractor,
+                 features_extractor_kwargs: dict[str, Any] | None = None,
+                 actor_keys: Sequence[str] | str | None = "auto", normalize_images: bool = True,
+                 optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
+                 optimizer_kwargs: dict[str, Any] | None = None, actor_weight_decay: float = 1e-4,
+                 n_critics: int = 2, log_std_bounds: tuple[float, float] = (-6.0, 0.0)):
+        super().__init__(observation_space, action_space, features_extractor_class, features_extractor_kwargs,
+                         optimizer_class=optimizer_class, optimizer_kwargs=optimizer_kwargs,
+                         squash_output=True, normalize_images=normalize_images)
+        if net_arch is None:
+            net_arch = list(DEFAULT_NET_ARCH)
+        if isinstance(net_arch, dict):
+            self.net_arch_pi, self.net_arch_qf = list(net_arch["pi"]), list(net_arch["qf"])
+        else:
+            self.net_arch_pi = self.net_arch_qf = list(net_arch)
+        self.net_arch = net_arch
+        self.activation_fn = activation_fn
+        self.actor_keys = _resolve_actor_keys(observation_space, actor_keys)
+        self.actor_weight_decay = float(actor_weight_decay)
+        self.n_critics = int(n_critics)
+        self.log_std_bounds = tuple(log_std_bounds)
+        self._build(lr_schedule)
+
+    def _extractor(self, keys: list[str] | None) -> BaseFeaturesExtractor:
+        kwargs = dict(self.features_extractor_kwargs)
+        if keys is not None:
+            if not issubclass(self.features_extractor_class, KeySubsetExtractor):
+                raise ValueError("actor_keys needs features_extractor_class=KeySubsetExtractor")
+            kwargs["keys"] = keys
+        return self.features_extractor_class(self.observation_space, **kwargs)
+
+    def _build(self, lr_schedule: Schedule) -> None:
+        actor_fe = self._extractor(self.actor_keys)
+        self.actor = GaussianActor(self.observation_space, self.action_space, self.net_arch_pi, actor_fe,
+                                   actor_fe.features_dim, self.activation_fn, self.normalize_images,
+                                   self.log_std_bounds)
+        opt_kwargs = dict(self.optimizer_kwargs)
+        actor_kwargs = {**opt_kwargs, "weight_decay": self.actor_weight_decay}
+        self.actor.optimizer = self.optimizer_class(self.actor.parameters(), lr=lr_schedule(1), **actor_kwargs)
+        self.critic = self._make_critic()
+        self.critic_target = self._make_critic()
+        self.critic_target.load_state_dict(self.critic.state_dict())
+        self.critic_target.set_training_mode(False)
+        self.critic.optimizer = self.optimizer_class(self.critic.parameters(), lr=lr_schedule(1), **opt_kwargs)
+
+    def _make_critic(self) -> ContinuousCritic:
+        fe = self._extractor(None)
+        return ContinuousCritic(self.observation_space, self.action_space, self.net_arch_qf, fe, fe.features_dim,
+                                self.activation_fn, self.normalize_images, self.n_critics,
+                                share_features_extractor=False)
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        data = super()._get_constructor_parameters()
+        data.update(net_arch=self.net_arch, activation_fn=self.activation_fn,
+                    features_extractor_class=self.features_extractor_class,
+                    features_extractor_kwargs=self.features_extractor_kwargs, actor_keys=self.actor_keys,
+                    optimizer_class=self.optimizer_class, optimizer_kwargs=self.optimizer_kwargs,
+                    actor_weight_decay=self.actor_weight_decay, n_critics=self.n_critics,
+                    log_std_bounds=self.log_std_bounds, lr_schedule=self._dummy_schedule)
+        return data
+
+    def forward(self, obs: th.Tensor, deterministic: bool = False) -> th.Tensor:
+        return self._predict(obs, deterministic)
+
+    def _predict(self, observation: th.Tensor, deterministic: bool = False) -> th.Tensor:
+        return self.actor(observation, deterministic)
+
+    def set_training_mode(self, mode: bool) -> None:
+        self.actor.set_training_mode(mode)
+        self.critic.set_training_mode(mode)
+        self.training = mode
+
+
+class DMfDCnnPolicy(DMfDPolicy):
+    """:class:`DMfDPolicy` for image observations (DMfD CNN encoder, LeakyReLU MLPs)."""
+
+    def __init__(self, observation_space: spaces.Space, action_space: spaces.Box, lr_schedule: Schedule,
+                 activation_fn: type[nn.Module] = nn.LeakyReLU,
+                 features_extractor_class: type[BaseFeaturesExtractor] = ImageEncoder, **kwargs: Any):
+        super().__init__(observation_space, action_space, lr_schedule, activation_fn=activation_fn,
+                         features_extractor_class=features_extractor_class, **kwargs)
+
+
+class DMfDMultiInputPolicy(DMfDPolicy):
+    """:class:`DMfDPolicy` for Dict observations (e.g. ``"state+image"``; asymmetric by default)."""
+
+    def __init__(self, observation_space: spaces.Space, action_space: spaces.Box, lr_schedule: Schedule,
+                 activation_fn: type[nn.Module] = nn.LeakyReLU,
+                 features_extractor_class: type[BaseFeaturesExtractor] = KeySubsetExtractor, **kwargs: Any):
+        super().__init__(observation_space, action_space, lr_schedule, activation_fn=activation_fn,
+                         features_extractor_class=features_extractor_class, **kwargs)
+
+
+# ----------------------------------------------------------------------------------- algorithm
+def _has_image(space: spaces.Space) -> bool:
+    return bool(image_keys(space))
+
+
+def _inner_dummy(venv: VecEnv) -> DummyVecEnv | None:
+    while not isinstance(venv, DummyVecEnv) and hasattr(venv, "venv"):
+        venv = venv.venv
+    return venv if isinstance(venv, DummyVecEnv) else None
+
+
+class DMfD(OffPolicyAlgorithm):
+    """DMfD (module docstring). SB3 API: ``DMfD(policy, env, demonstrations=...)``, ``learn``,
+    ``predict``, ``save``, ``load``.
+
+    Args:
+        policy: ``"MlpPolicy"`` (state), ``"CnnPolicy"`` (image) or ``"MultiInputPolicy"``
+            (``"state+image"``), or a :class:`DMfDPolicy` subclass.
+        env: a Gymnasium env, env id or SB3 VecEnv.
+        demonstrations: Minari dataset / path / id or list of episodes
+            (:func:`lfd_agents.demos.load_episodes`); they pre-fill the replay buffer and are the
+            reference states for RSI. ``None`` runs without demonstrations.
+        learning_rate, buffer_size, learning_starts, batch_size, tau, gamma, train_freq,
+            gradient_steps: as in SB3 ``SAC``; defaults 3e-4, 600k, 0, 256, 0.005, 0.9, 1, 1.
+        entropy_weight: w_E, weight of the entropy term L_E (0.1).
+        ent_coef: α, entropy coefficient inside L_E (0.5).
+        awr_temperature: λ, advantage temperature of L_A (2.0).
+        target_ent_coef: entropy coefficient in the critic target (0.0 as in the original code).
+        reward_scale: factor on every reward (demonstrations and online alike) before the critic
+            sees it; it sets the size of Q, hence of the advantages against λ and of Q against α.
+        rsi_prob: probability of a reference-state reset; ``"auto"`` = 0.3 for image and 0.2 for
+            state observations when the demonstrations carry simulator states (else 0); 0 disables.
+        imitation_reward_scale: factor on the RSI imitation reward.
+        duplicate_demos: repeat the demonstrations to fill the buffer (``True``) or ``k`` times.
+        augment: pad-and-random-crop image augmentation (``"auto"``: on when there are images).
+        aug_pad: padding of the augmentation (2).
+        offline_steps: gradient steps on the demonstration buffer before the first env step.
+    """
+
+    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
+        "MlpPolicy": DMfDPolicy, "CnnPolicy": DMfDCnnPolicy, "MultiInputPolicy": DMfDMultiInputPolicy}
+    policy: DMfDPolicy
+    actor: GaussianActor
+    critic: ContinuousCritic
+    critic_target: ContinuousCritic
+
+    def __init__(self, policy: str | type[DMfDPolicy], env: GymEnv | str | None, demonstrations: Any = None,
+                 learning_rate: float | Schedule = 3e-4, buffer_size: int = 600_000, learning_starts: int = 0,
+                 batch_size: int = 256, tau: float = 0.005, gamma: float = 0.9,
+                 train_freq: int | tuple[int, str] = 1, gradient_steps: int = 1, entropy_weight: float = 0.1,
+                 ent_coef: float = 0.5, awr_temperature: float = 2.0, target_ent_coef: float = 0.0,
+                 reward_scale: float = 1.0, rsi_prob: float | str = "auto", imitation_reward_scale: float = 1.0,
+                 duplicate_demos: bool | int = False, augment: bool | str = "auto", aug_pad: int = 2,
+                 offline_steps: int = 0, replay_buffer_class: Any = None,
+                 replay_buffer_kwargs: dict[str, Any] | None = None, policy_kwargs: dict[str, Any] | None = None,
+                 stats_window_size: int = 100, tensorboard_log: str | None = None, verbose: int = 0,
+                 seed: int | None = None, device: th.device | str = "auto", _init_setup_model: bool = True):
+        if not 0.0 <= entropy_weight <= 1.0:
+            raise ValueError(f"entropy_weight (w_E) must be in [0, 1], got {entropy_weight}")
+        if awr_temperature <= 0:
+            raise ValueError(f"awr_temperature (λ) must be > 0, got {awr_temperature}")
+        if ent_coef < 0 or target_ent_coef < 0:
+            raise ValueError("ent_coef and target_ent_coef must be >= 0")
+        if aug_pad < 0 or offline_steps < 0:
+            raise ValueError("aug_pad and offline_steps must be >= 0")
+        self.entropy_weight = float(entropy_weight)
+        self.ent_coef = float(ent_coef)
+        self.awr_temperature = float(awr_temperature)
+        self.target_ent_coef = float(target_ent_coef)
+        self.reward_scale = float(reward_scale)
+        self.imitation_reward_scale = float(imitation_reward_scale)
+        self.duplicate_demos = duplicate_demos
+        self.augment = augment
+        self.aug_pad = int(aug_pad)
+        self.offline_steps = int(offline_steps)
+        self._offline_done = False
+        self._episodes = load_episodes(demonstrations)
+        if isinstance(env, str):
+            env = gym.make(env)
+        self.rsi_prob = self._resolve_rsi(rsi_prob, env)
+        env = self._wrap_rsi(env, seed)
+        super().__init__(policy, env, learning_rate, buffer_size=buffer_size, learning_starts=learning_starts,
+                         batch_size=batch_size, tau=tau, gamma=gamma, train_freq=train_freq,
+                         gradient_steps=gradient_steps, replay_buffer_class=replay_buffer_class,
+                         replay_buffer_kwargs=replay_buffer_kwargs, policy_kwargs=policy_kwargs,
+                         stats_window_size=stats_window_size, tensorboard_log=tensorboard_log, verbose=verbose,
+                         device=device, seed=seed, support_multi_env=True, sde_support=False,
+                         supported_action_spaces=(spaces.Box,))
+        if _init_setup_model:
+            self._setup_model()
+
+    # ------------------------------------------------------------------ set-up
+    def _resolve_rsi(self, rsi_prob: float | str, env: Any) -> float:
+        with_states = bool(episodes_with_states(self._episodes))
+        if rsi_prob == "auto":
+            if env is None or not with_states:
+                return 0.0
+            return 0.3 if _has_image(env.observation_space) else 0.2
+        p = float(rsi_prob)
+        if not 0.0 <= p <= 1.0:
+            raise ValueError(f"rsi_prob must be in [0, 1] or 'auto', got {rsi_prob!r}")
+        if p > 0 and not with_states:
+            raise ValueError("rsi_prob > 0 needs demonstrations with per-step simulator states (infos['state'])")
+        return p
+
+    def _wrap_rsi(self, env: Any, seed: int | None) -> Any:
+        if self.rsi_prob == 0 or env is None:
+            return env
+
+        def wrap(e: gym.Env, i: int) -> gym.Env:
+            s = None if seed is None else seed + 7919 * i
+            return ReferenceStateInit(e, self._episodes, self.rsi_prob, self.imitation_reward_scale, seed=s)
+
+        if isinstance(env, VecEnv):
+            dummy = _inner_dummy(env)
+            if dummy is None:
+                warnings.warn(f"reference-state initialisation needs per-env set_state; {type(env).__name__} "
+                              "does not offer it, so RSI is disabled (use a DummyVecEnv or a single env)")
+                self.rsi_prob = 0.0
+                return env
+            dummy.envs = [wrap(e, i) for i, e in enumerate(dummy.envs)]
+            return env
+        return wrap(env, 0)
+
+    def _setup_model(self) -> None:
+        super()._setup_model()
+        self.actor, self.critic, self.critic_target = self.policy.actor, self.policy.critic, self.policy.critic_target
+        use_aug = _has_image(self.observation_space) if self.augment == "auto" else bool(self.augment)
+        self._aug_keys = image_keys(self.observation_space) if use_aug else []
+        if self._episodes:
+            self.add_demonstrations(self._episodes, duplicate=self.duplicate_demos)
+
+    def add_demonstrations(self, demonstrations: Any, duplicate: bool | int = False) -> int:
+        """Write demonstrations into the replay buffer (e.g. after ``load``); returns the count."""
+        n = fill_replay_buffer(self.replay_buffer, demonstrations, duplicate=duplicate)
+        if self.verbose:
+            print(f"DMfD: {n} demonstration transitions in the replay buffer")
+        return n
+
+    def _excluded_save_params(self) -> list[str]:
+        return super()._excluded_save_params() + ["actor", "critic", "critic_target", "_episodes"]
+
+    def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
+        return ["policy", "actor.optimizer", "critic.optimizer"], []
+
+    # ------------------------------------------------------------------ losses
+    def augment_batch(self, data: ReplayBufferSamples) -> ReplayBufferSamples:
+        """Random-shift the image entries of ``observations`` and ``next_observations``."""
+        if not self._aug_keys:
+            return data
+        return data._replace(observations=augment_observations(data.observations, self._aug_keys, self.aug_pad),
+                             next_observations=augment_observations(data.next_observations, self._aug_keys,
+                                                                    self.aug_pad))
+
+    def _min_q(self, critic: ContinuousCritic, obs: Any, actions: th.Tensor) -> th.Tensor:
+        return th.min(th.cat(critic(obs, actions), dim=1), dim=1).values
+
+    def critic_loss(self, data: ReplayBufferSamples) -> dict[str, th.Tensor]:
+        """Sum over critics of MSE(Q_i(s, a_B), y); returns ``loss``, ``target`` and ``q``."""
+        with th.no_grad():
+            dist = self.actor.distribution(data.next_observations)
+            next_actions = dist.sample()
+            next_q = self._min_q(self.critic_target, data.next_observations, next_actions)
+            target = td_target(self.reward_scale * data.rewards.flatten(), data.dones.flatten(), next_q, log_prob(dist, next_actions),
+                               gamma=self.gamma, target_ent_coef=self.target_ent_coef)
+        qs = self.critic(data.observations, data.actions)
+        loss = sum(F.mse_loss(q.flatten(), target) for q in qs)
+        return {"loss": loss, "target": target, "q": th.cat(qs, dim=1).detach()}
+
+    def actor_loss(self, data: ReplayBufferSamples) -> dict[str, th.Tensor]:
+        """DMfD actor loss on a batch (see :func:`dmfd_actor_loss`)."""
+        dist = self.actor.distribution(data.observations)
+        pi_actions = dist.rsample()
+        q_pi = self._min_q(self.critic, data.observations, pi_actions)
+        with th.no_grad():
+            advantages = self._min_q(self.critic, data.observations, data.actions) - q_pi
+        out = dmfd_actor_loss(log_prob(dist, data.actions), advantages, log_prob(dist, pi_actions), q_pi,
+                              temperature=self.awr_temperature, ent_coef=self.ent_coef,
+                              entropy_weight=self.entropy_weight)
+        out["advantages"] = advantages
+        return out
+
+    # ------------------------------------------------------------------ training
+    def train(self, gradient_steps: int, batch_size: int = 256) -> None:
+        self.policy.set_training_mode(True)
+        self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
+        logs: dict[str, list[float]] = defaultdict(list)
+        for _ in range(gradient_steps):
+            data = self.augment_batch(self.replay_buffer.sample(batch_size, env=self._vec_normalize_env))
+            critic = self.critic_loss(data)
+            self.critic.optimizer.zero_grad()
+            critic["loss"].backward()
+            self.critic.optimizer.step()
+            actor = self.actor_loss(data)
+            self.actor.optimizer.zero_grad()
+            actor["loss"].backward()
+            self.actor.optimizer.step()
+            polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
+            logs["critic_loss"].append(critic["loss"].item())
+            logs["actor_loss"].append(actor["loss"].item())
+            logs["awr_loss"].append(actor["awr_loss"].item())
+            logs["entropy_loss"].append(actor["entropy_loss"].item())
+            logs["max_weight"].append(actor["weights"].max().item())
+        self._n_updates += gradient_steps
+        self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
+        self.logger.record("train/log_std", self.actor.log_std().mean().item())
+        for key, values in logs.items():
+            self.logger.record(f"train/{key}", float(np.mean(values)))
+
+    def _setup_learn(self, total_timesteps: int, callback: Any = None, reset_num_timesteps: bool = True,
+                     tb_log_name: str = "run", progress_bar: bool = False):
+        out = super()._setup_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar)
+        if self.offline_steps and not self._offline_done:
+            if self.replay_buffer.size() == 0:
+                warnings.warn("offline_steps > 0 but the replay buffer is empty (no demonstrations); skipping")
+            else:
+                self.train(self.offline_steps, self.batch_size)
+            self._offline_done = True
+        return out
+
+    def learn(self, total_timesteps: int, callback: Any = None, log_interval: int = 4, tb_log_name: str = "DMfD",
+              reset_num_timesteps: bool = True, progress_bar: bool = False) -> "DMfD":
+        return super().learn(total_timesteps=total_timesteps, callback=callback, log_interval=log_interval,
+                             tb_log_name=tb_log_name, reset_num_timesteps=reset_num_timesteps,
+                             progress_bar=progress_bar)

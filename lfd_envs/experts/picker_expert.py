@@ -1,0 +1,205 @@
+"""Shared machinery of the scripted particle-task experts: plans of pick-and-place moves.
+
+A task expert only says *what* to move: :meth:`PickerExpert.next_move` returns the next
+:class:`Move` (pick and place points of every picker, computed from the privileged simulator
+state), and optionally :meth:`PickerExpert.retarget` updates a move while it is executed.
+This class executes moves in both action modes:
+
+* ``pick_place``: one move per env step, encoded as the normalised pick/place action.
+* ``delta``: a closed-loop state machine over env steps - approach (above the pick point) ->
+  descend -> grasp -> lift -> carry -> lower -> release -> retreat - with the same carry height
+  as the pick-and-place action mode (the task's :class:`PickPlaceSchedule`), so both modes
+  follow the same path.
+
+Works for any picker count: pickers that a move does not use stay where they are (delta) or
+pick and place in empty air at the top of the workspace (pick_place).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from lfd_envs.tasks.picker_actions import arc_length, carry_point
+
+__all__ = ["Move", "PickerExpert"]
+
+PHASES = ("approach", "descend", "grasp", "lift", "carry", "lower", "release", "retreat")
+ONE_SHOT = {"grasp", "release"}
+HOLDING = {"grasp", "lift", "carry", "lower"}
+
+
+@dataclass
+class Move:
+    """One pick-and-place of all pickers (world coordinates, metres).
+
+    Attributes:
+        pick: Pick points ``(P, 3)``.
+        place: Place points ``(P, 3)``.
+        active: Which pickers take part ``(P,)`` (default all).
+    """
+
+    pick: np.ndarray
+    place: np.ndarray
+    active: np.ndarray | None = None
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.pick = np.asarray(self.pick, dtype=np.float64).reshape(-1, 3)
+        self.place = np.asarray(self.place, dtype=np.float64).reshape(-1, 3)
+        if self.active is None:
+            self.active = np.ones(len(self.pick), dtype=bool)
+        self.active = np.asarray(self.active, dtype=bool)
+
+
+class PickerExpert:
+    """Base class of the particle-task experts (see module docstring).
+
+    Args:
+        env: A particle env (wrappers allowed).
+        hold_speed: Fraction of the maximum delta speed used while holding (delta mode).
+        tolerance: Distance (m) at which a delta-mode waypoint counts as reached.
+        max_phase_steps: Steps after which a delta-mode phase is abandoned (never stalls).
+    """
+
+    def __init__(self, env: Any, hold_speed: float = 0.6, tolerance: float = 1e-3, max_phase_steps: int = 80) -> None:
+        base = env.unwrapped
+        if not hasattr(base, "batch") or not hasattr(base, "task"):
+            raise TypeError(f"{type(self).__name__} needs a particle-task env, got {type(base).__name__}")
+        self.env = env
+        self.base = base
+        self.task = base.task
+        self.mode = base.action_mode
+        self.num_pickers = base.num_pickers
+        self.workspace = base.batch.workspace
+        self.schedule = self.task.pick_place_schedule()
+        self.actions = base.batch.action_mode
+        self.hold_speed = float(hold_speed)
+        self.tolerance = float(tolerance)
+        self.max_phase_steps = int(max_phase_steps)
+        self.reset()
+
+    # ------------------------------------------------------------------ to implement
+    def next_move(self) -> Move | None:
+        """The next move from the current state, or None when the plan is done."""
+        raise NotImplementedError
+
+    def retarget(self, move: Move) -> Move:
+        """Update a move under way (delta mode) from the current state; default: unchanged."""
+        return move
+
+    # ------------------------------------------------------------------ state
+    def reset(self) -> None:
+        """Forget the current plan (call after every ``env.reset``)."""
+        self.moves_done = 0
+        self._move: Move | None = None
+        self._phase = 0
+        self._phase_steps = 0
+        self._issued = False
+        self._carry_alpha = 0.0
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Particle positions ``(N, 3)`` of the env (privileged)."""
+        return np.asarray(self.base.particle_positions, dtype=np.float64)
+
+    @property
+    def pickers(self) -> np.ndarray:
+        """Picker centres ``(P, 3)``."""
+        return np.asarray(self.base.picker_positions, dtype=np.float64)
+
+    @property
+    def steps_left(self) -> int:
+        return int(self.base.horizon - self.base.elapsed_steps)
+
+    # ------------------------------------------------------------------ SB3 policy API
+    def predict(self, observation: Any, state: Any = None, episode_start: Any = None,
+                deterministic: bool = True) -> tuple[np.ndarray, None]:
+        """Action for the env's current state (the observation itself is not needed)."""
+        if self.mode == "pick_place":
+            action = self._pick_place_action()
+        else:
+            action = self._delta_action()
+        return action.astype(np.float32), None
+
+    # ------------------------------------------------------------------ pick_place mode
+    def _pick_place_action(self) -> np.ndarray:
+        move = self.next_move()
+        if move is not None:
+            self.moves_done += 1
+        pick, place = self._idle_points()
+        if move is not None:
+            pick[move.active] = move.pick[move.active]
+            place[move.active] = move.place[move.active]
+        return self.actions.join(pick, place)
+
+    def _idle_points(self) -> tuple[np.ndarray, np.ndarray]:
+        """Pick/place points that touch nothing: above each picker, at the workspace top."""
+        top = self.workspace.hi[2] - self.workspace.margin
+        idle = self.pickers.copy()
+        idle[:, 2] = top
+        return idle.copy(), idle.copy()
+
+    # ------------------------------------------------------------------ delta mode
+    def _target(self, name: str, move: Move, cur: np.ndarray) -> np.ndarray:
+        """Delta-mode waypoint of phase ``name`` (same path as the pick_place action mode)."""
+        ws, s = self.workspace, self.schedule
+        top = ws.hi[2] - ws.margin
+        pick, place = ws.clip(move.pick), ws.clip(move.place)
+        wpt = s.waypoints(pick, place, top)
+        target = {"approach": wpt["above_pick"], "descend": pick, "lift": wpt["lifted"],
+                  "lower": place, "retreat": wpt["retreat"], "carry_end": wpt["above_place"]}.get(name, cur)
+        if name == "carry":
+            arc = s.arc_height(wpt["lifted"], wpt["above_place"])
+            length = arc_length(wpt["lifted"], wpt["above_place"], arc)[move.active].max()
+            step = self.hold_speed * self.actions.step_size * self.actions.action_repeat
+            self._carry_alpha = min(1.0, self._carry_alpha + step / max(length, 1e-9))
+            target = carry_point(wpt["lifted"], wpt["above_place"], arc, np.full(len(arc), self._carry_alpha), top)
+        out = cur.copy()
+        out[move.active] = ws.clip(target)[move.active]
+        return out
+
+    def _delta_action(self) -> np.ndarray:
+        p = self.num_pickers
+        cur = self.pickers
+        action = np.zeros((p, 4))
+        action[:, 3] = -1.0
+        for _ in range(len(PHASES) + 2):  # advance through finished phases
+            if self._move is None:
+                self._move = self.next_move()
+                self._phase, self._phase_steps, self._issued = 0, 0, False
+                if self._move is None:
+                    return action.ravel()
+            name = PHASES[self._phase]
+            if name == "approach":
+                self._move = self.retarget(self._move)
+            move = self._move
+            if name != "carry":
+                self._carry_alpha = 0.0
+                target = self._target(name, move, cur)
+                gap = np.abs(target - cur).max()
+            else:  # the arc advances with every step; done once its end is reached
+                gap = np.abs(self._target("carry_end", move, cur) - cur).max() if self._carry_alpha >= 1.0 else 1.0
+                if gap >= self.tolerance:
+                    target = self._target(name, move, cur)
+            done = (self._issued if name in ONE_SHOT else gap < self.tolerance) or self._phase_steps >= self.max_phase_steps
+            if not done:
+                break
+            self._phase += 1
+            self._phase_steps, self._issued = 0, False
+            if self._phase == len(PHASES):
+                self.moves_done += 1
+                self._move = None
+        else:  # pragma: no cover - defensive
+            return action.ravel()
+        reach = self.actions.step_size * self.actions.action_repeat
+        speed = self.hold_speed if name in HOLDING else 1.0
+        delta = (target - cur) / reach
+        scale = max(1.0, np.abs(delta).max() / speed)
+        action[:, :3] = delta / scale
+        action[move.active, 3] = 1.0 if name in HOLDING else -1.0
+        self._phase_steps += 1
+        self._issued = True
+        return action.ravel()

@@ -1,0 +1,664 @@
+"""Warp kernels of the particle engine (see :mod:`lfd_envs.sim.engine` for the pipeline).
+
+Layout: all worlds share one flat particle array; particle ``i`` belongs to world ``i // N``
+(``N`` particles per world).  Per-world topology arrays (constraint CSR, colours, object ids)
+are indexed with the world-local index ``li = i - w*N``.
+
+Determinism: every kernel writes only data owned by its thread (its particle, its world or its
+rigid box) and reads data that no other thread of the same launch writes, so results do not
+depend on thread scheduling (CPU or CUDA); there are no float atomics.
+"""
+
+from __future__ import annotations
+
+import warp as wp
+
+wp.set_module_options({"enable_backward": False})
+
+EPS = wp.constant(1.0e-9)
+
+
+# ----------------------------------------------------------------------------- helpers
+@wp.func
+def cell_hash(cx: int, cy: int, cz: int, mask: int) -> int:
+    h = (wp.uint32(cx) * wp.uint32(73856093)) ^ (wp.uint32(cy) * wp.uint32(19349663)) ^ (
+        wp.uint32(cz) * wp.uint32(83492791)
+    )
+    return int(h & wp.uint32(mask))
+
+
+@wp.func
+def cell_of(p: wp.vec3, inv_h: float) -> wp.vec3i:
+    return wp.vec3i(int(wp.floor(p[0] * inv_h)), int(wp.floor(p[1] * inv_h)), int(wp.floor(p[2] * inv_h)))
+
+
+@wp.func
+def set_axis(v: wp.vec3, axis: int, value: float) -> wp.vec3:
+    if axis == 0:
+        return wp.vec3(value, v[1], v[2])
+    if axis == 1:
+        return wp.vec3(v[0], value, v[2])
+    return wp.vec3(v[0], v[1], value)
+
+
+@wp.func
+def sign_nz(x: float) -> float:
+    if x < 0.0:
+        return -1.0
+    return 1.0
+
+
+@wp.func
+def box_contact(x: wp.vec3, xp: wp.vec3, r: float, c: wp.vec3, rot: wp.mat33, he: wp.vec3, ccd: int) -> wp.vec3:
+    """Project point ``x`` (radius ``r``) out of an oriented box.
+
+    With ``ccd`` the segment ``xp -> x`` (``xp``: position at the start of the substep) is tested
+    against the inflated box: a particle that entered or crossed it is put back on the face it
+    entered through, so nothing tunnels through thin planks whatever its speed.
+    """
+    rt = wp.transpose(rot)
+    xl = rt * (x - c)
+    pl = rt * (xp - c)
+    e = he + wp.vec3(r, r, r)
+    inside = (wp.abs(xl[0]) < e[0]) and (wp.abs(xl[1]) < e[1]) and (wp.abs(xl[2]) < e[2])
+    prev_out = (wp.abs(pl[0]) >= e[0]) or (wp.abs(pl[1]) >= e[1]) or (wp.abs(pl[2]) >= e[2])
+    if ccd != 0 and prev_out:
+        d = xl - pl
+        t_enter = float(-1.0e30)
+        t_exit = float(1.0e30)
+        axis = int(-1)
+        hit = int(1)
+        for a in range(3):
+            if wp.abs(d[a]) < 1.0e-12:
+                if wp.abs(pl[a]) >= e[a]:
+                    hit = 0
+            else:
+                t1 = (-e[a] - pl[a]) / d[a]
+                t2 = (e[a] - pl[a]) / d[a]
+                tn = wp.min(t1, t2)
+                tf = wp.max(t1, t2)
+                if tn > t_enter:
+                    t_enter = tn
+                    axis = a
+                t_exit = wp.min(t_exit, tf)
+        if hit != 0 and axis >= 0 and t_enter <= t_exit and t_enter >= 0.0 and t_enter <= 1.0:
+            xl = set_axis(xl, axis, -sign_nz(d[axis]) * e[axis])
+            return c + rot * xl
+        if not inside:
+            return x
+    if inside:
+        # nearest face
+        pen0 = e[0] - wp.abs(xl[0])
+        pen1 = e[1] - wp.abs(xl[1])
+        pen2 = e[2] - wp.abs(xl[2])
+        if pen0 <= pen1 and pen0 <= pen2:
+            xl = set_axis(xl, 0, sign_nz(xl[0]) * e[0])
+        elif pen1 <= pen2:
+            xl = set_axis(xl, 1, sign_nz(xl[1]) * e[1])
+        else:
+            xl = set_axis(xl, 2, sign_nz(xl[2]) * e[2])
+        return c + rot * xl
+    return x
+
+
+# ----------------------------------------------------------------------------- substep start
+@wp.kernel
+def predict(
+    q: wp.array(dtype=wp.vec3),
+    q_prev: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    attach: wp.array(dtype=wp.int32),
+    attach_off: wp.array(dtype=wp.vec3),
+    pick_start: wp.array(dtype=wp.vec3),
+    pick_end: wp.array(dtype=wp.vec3),
+    fric: wp.array(dtype=wp.vec3),
+    w_eff: wp.array(dtype=float),
+    num_particles: int,
+    num_pickers: int,
+    alpha: float,
+    gravity: float,
+    dt: float,
+    damp: float,
+    max_speed: float,
+    total: int,
+    chunk: int,
+):
+    tid = wp.tid()
+    for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
+        xp = q[i]
+        q_prev[i] = xp
+        fric[i] = wp.vec3(0.0, 0.0, 0.0)
+        a = attach[i]
+        wi = inv_mass[i]
+        if a >= 0:
+            wi = 0.0
+        w_eff[i] = wi
+        if a >= 0:
+            k = (i // num_particles) * num_pickers + a
+            q[i] = wp.lerp(pick_start[k], pick_end[k], alpha) + attach_off[i]
+        elif wi > 0.0:
+            vi = (v[i] + wp.vec3(0.0, 0.0, gravity * dt)) * damp
+            s = wp.length(vi)
+            if s > max_speed:
+                vi = vi * (max_speed / s)
+            v[i] = vi
+            q[i] = xp + vi * dt
+
+
+# ----------------------------------------------------------------------------- neighbour search
+@wp.kernel
+def build_grid(
+    q: wp.array(dtype=wp.vec3),
+    sc_r: wp.array(dtype=float),
+    grid_params: wp.array(dtype=float),
+    num_particles: int,
+    table_size: int,
+    cell_start: wp.array(dtype=wp.int32),
+    cell_end: wp.array(dtype=wp.int32),
+    sorted_idx: wp.array(dtype=wp.int32),
+    sorted_q: wp.array(dtype=wp.vec3),
+    sorted_r: wp.array(dtype=float),
+):
+    """Counting sort of one world's self-colliding particles into a spatial hash (one thread per world)."""
+    w = wp.tid()
+    inv_h = 1.0 / grid_params[0]
+    mask = table_size - 1
+    base = w * num_particles
+    tb = w * table_size
+    for c in range(table_size):
+        cell_start[tb + c] = 0
+    for li in range(num_particles):
+        i = base + li
+        if sc_r[i] > 0.0:
+            ci = cell_of(q[i], inv_h)
+            h = cell_hash(ci[0], ci[1], ci[2], mask)
+            cell_start[tb + h] = cell_start[tb + h] + 1
+    s = int(0)
+    for c in range(table_size):
+        cnt = cell_start[tb + c]
+        cell_start[tb + c] = s
+        cell_end[tb + c] = s
+        s = s + cnt
+    for li in range(num_particles):
+        i = base + li
+        if sc_r[i] > 0.0:
+            ci = cell_of(q[i], inv_h)
+            h = cell_hash(ci[0], ci[1], ci[2], mask)
+            slot = cell_end[tb + h]
+            sorted_idx[base + slot] = li
+            sorted_q[base + slot] = q[i]
+            sorted_r[base + slot] = sc_r[i]
+            cell_end[tb + h] = slot + 1
+
+
+@wp.kernel
+def build_neighbors(
+    q: wp.array(dtype=wp.vec3),
+    sc_r: wp.array(dtype=float),
+    obj: wp.array(dtype=wp.int32),
+    rest: wp.array(dtype=wp.vec3),
+    grid_params: wp.array(dtype=float),
+    num_particles: int,
+    table_size: int,
+    max_nbr: int,
+    cell_start: wp.array(dtype=wp.int32),
+    cell_end: wp.array(dtype=wp.int32),
+    sorted_idx: wp.array(dtype=wp.int32),
+    sorted_q: wp.array(dtype=wp.vec3),
+    sorted_r: wp.array(dtype=float),
+    nbr: wp.array(dtype=wp.int32),
+    nbr_d: wp.array(dtype=float),
+    nbr_count: wp.array(dtype=wp.int32),
+    total: int,
+    chunk: int,
+):
+    """Per particle: the ``max_nbr`` closest self-collision candidates, sorted by (distance, index).
+
+    The result does not depend on the traversal order of the hash table, so it is identical
+    whether a world is simulated alone or in a batch.  Pairs of the same object whose rest
+    distance is below their collision distance are filtered (FleX SelfCollideFilter).
+    """
+    tid = wp.tid()
+    for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
+        ri = sc_r[i]
+        if ri <= 0.0:
+            nbr_count[i] = 0
+            continue
+        w = i // num_particles
+        li = i - w * num_particles
+        base = w * num_particles
+        tb = w * table_size
+        mask = table_size - 1
+        h = grid_params[0]
+        fac = grid_params[1]
+        inv_h = 1.0 / h
+        p = q[i]
+        oi = obj[li]
+        resti = rest[i]
+        off = i * max_nbr
+        ci = cell_of(p, inv_h)
+        sx = int(1)
+        sy = int(1)
+        sz = int(1)
+        if p[0] * inv_h - float(ci[0]) < 0.5:
+            sx = -1
+        if p[1] * inv_h - float(ci[1]) < 0.5:
+            sy = -1
+        if p[2] * inv_h - float(ci[2]) < 0.5:
+            sz = -1
+        count = int(0)
+        for a in range(2):
+            for b in range(2):
+                for c in range(2):
+                    hc = cell_hash(ci[0] + a * sx, ci[1] + b * sy, ci[2] + c * sz, mask)
+                    for s in range(cell_start[tb + hc], cell_end[tb + hc]):
+                        rsum = ri + sorted_r[base + s]
+                        cut = rsum * fac
+                        dv = sorted_q[base + s] - p
+                        d2 = wp.dot(dv, dv)
+                        if d2 >= cut * cut:
+                            continue
+                        lj = sorted_idx[base + s]
+                        if lj == li:
+                            continue
+                        if obj[lj] == oi:
+                            rd = rest[base + lj] - resti
+                            if wp.dot(rd, rd) < rsum * rsum:
+                                continue
+                        dup = int(0)
+                        for t in range(count):
+                            if nbr[off + t] == lj:
+                                dup = 1
+                        if dup != 0:
+                            continue
+                        pos = int(-1)
+                        if count < max_nbr:
+                            pos = count
+                            count = count + 1
+                        else:
+                            last = nbr_d[off + max_nbr - 1]
+                            if d2 < last or (d2 == last and lj < nbr[off + max_nbr - 1]):
+                                pos = max_nbr - 1
+                        if pos < 0:
+                            continue
+                        while pos > 0:
+                            pd = nbr_d[off + pos - 1]
+                            pj = nbr[off + pos - 1]
+                            if pd > d2 or (pd == d2 and pj > lj):
+                                nbr_d[off + pos] = pd
+                                nbr[off + pos] = pj
+                                pos = pos - 1
+                            else:
+                                break
+                        nbr_d[off + pos] = d2
+                        nbr[off + pos] = lj
+        nbr_count[i] = count
+
+
+# ----------------------------------------------------------------------------- solver
+@wp.func
+def project_distance(xi: wp.vec3, xj: wp.vec3, wi: float, wj: float, k: float, rest: float):
+    """PBD distance projection; returns the new positions of both particles."""
+    wsum = wi + wj
+    if wsum > 0.0:
+        d = xi - xj
+        l = wp.length(d)
+        if l > EPS:
+            s = k * (l - rest) / (l * wsum)
+            return xi - (wi * s) * d, xj + (wj * s) * d
+    return xi, xj
+
+
+@wp.kernel
+def solve_constraints(
+    con_i: wp.array(dtype=wp.int32),
+    con_j: wp.array(dtype=wp.int32),
+    con_k: wp.array(dtype=float),
+    con_rest: wp.array(dtype=float),
+    color_offset: int,
+    color_count: int,
+    num_cons: int,
+    num_particles: int,
+    q: wp.array(dtype=wp.vec3),
+    w_eff: wp.array(dtype=float),
+):
+    """PBD projection of the distance constraints of one colour, one constraint per thread
+    (``dim = num_worlds * color_count``; GPU variant).  Constraints of one colour share no
+    particle, so each constraint writes its two particles race-free."""
+    t = wp.tid()
+    w = t // color_count
+    c = color_offset + (t - w * color_count)
+    base = w * num_particles
+    i = base + con_i[c]
+    j = base + con_j[c]
+    xi, xj = project_distance(q[i], q[j], w_eff[i], w_eff[j], con_k[c], con_rest[w * num_cons + c])
+    q[i] = xi
+    q[j] = xj
+
+
+@wp.kernel
+def solve_constraints_serial(
+    con_i: wp.array(dtype=wp.int32),
+    con_j: wp.array(dtype=wp.int32),
+    con_k: wp.array(dtype=float),
+    con_rest: wp.array(dtype=float),
+    color_offset: int,
+    color_count: int,
+    num_cons: int,
+    num_particles: int,
+    q: wp.array(dtype=wp.vec3),
+    w_eff: wp.array(dtype=float),
+    num_worlds: int,
+):
+    """Same as :func:`solve_constraints` with one thread looping over all worlds and constraints
+    of the colour (CPU variant: CPU launches are serial, and this avoids per-thread overhead).
+    Results are bitwise identical to the GPU variant."""
+    for w in range(num_worlds):
+        base = w * num_particles
+        rbase = w * num_cons
+        for c in range(color_offset, color_offset + color_count):
+            i = base + con_i[c]
+            j = base + con_j[c]
+            xi, xj = project_distance(q[i], q[j], w_eff[i], w_eff[j], con_k[c], con_rest[rbase + c])
+            q[i] = xi
+            q[j] = xj
+
+
+@wp.kernel
+def solve_particles(
+    num_particles: int,
+    q: wp.array(dtype=wp.vec3),
+    q_snap: wp.array(dtype=wp.vec3),
+    q_prev: wp.array(dtype=wp.vec3),
+    w_eff: wp.array(dtype=float),
+    attach: wp.array(dtype=wp.int32),
+    radius: wp.array(dtype=float),
+    box_of: wp.array(dtype=wp.int32),
+    sc_on: int,
+    sc_r: wp.array(dtype=float),
+    max_nbr: int,
+    nbr: wp.array(dtype=wp.int32),
+    nbr_count: wp.array(dtype=wp.int32),
+    num_static: int,
+    sbox_pos: wp.array(dtype=wp.vec3),
+    sbox_rot: wp.array(dtype=wp.mat33),
+    sbox_he: wp.array(dtype=wp.vec3),
+    num_boxes: int,
+    box_pos: wp.array(dtype=wp.vec3),
+    box_rot: wp.array(dtype=wp.mat33),
+    box_he: wp.array(dtype=wp.vec3),
+    fric: wp.array(dtype=wp.vec3),
+    tether_anchor: wp.array(dtype=wp.int32),
+    tether_len: wp.array(dtype=float),
+    total: int,
+    chunk: int,
+):
+    """Per-particle pass (Jacobi: partners are read from the snapshot ``q_snap``, each particle
+    writes only itself): self-collision pairs, tethers, rigid boxes, ground and static boxes
+    (with continuous collision against the substep start), friction bookkeeping."""
+    tid = wp.tid()
+    for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
+        wi = w_eff[i]
+        if wi == 0.0 and attach[i] < 0:
+            continue  # pinned
+        w = i // num_particles
+        li = i - w * num_particles
+        base = w * num_particles
+        x = q[i]
+        r = radius[i]
+        if wi > 0.0:
+            if sc_on != 0:
+                ri = sc_r[i]
+                if ri > 0.0:
+                    off = i * max_nbr
+                    for tn in range(nbr_count[i]):
+                        j = base + nbr[off + tn]
+                        wj = w_eff[j]
+                        dmin = ri + sc_r[j]
+                        d = x - q_snap[j]
+                        l2 = wp.dot(d, d)
+                        if l2 < dmin * dmin and l2 > 1.0e-18:
+                            l = wp.sqrt(l2)
+                            x = x + d * ((dmin - l) / l * wi / (wi + wj))
+            ta = tether_anchor[i]
+            if ta >= 0:
+                d = x - q_snap[ta]
+                l = wp.length(d)
+                tl = tether_len[i]
+                if l > tl:
+                    x = x - d * ((l - tl) / l)
+            # dynamic rigid boxes (one-way for cloth/rope, half-half between boxes)
+            mybox = box_of[li]
+            for b in range(num_boxes):
+                if b != mybox:
+                    kb = w * num_boxes + b
+                    xn = box_contact(x, x, r, box_pos[kb], box_rot[kb], box_he[kb], 0)
+                    if mybox >= 0:
+                        x = x + 0.5 * (xn - x)
+                    else:
+                        x = xn
+        # static geometry with friction bookkeeping
+        x0 = x
+        if x[2] < r:
+            x = wp.vec3(x[0], x[1], r)
+        if num_static > 0:
+            xp = q_prev[i]
+            for s in range(num_static):
+                ks = w * num_static + s
+                he = sbox_he[ks]
+                if he[0] > 0.0:
+                    x = box_contact(x, xp, r, sbox_pos[ks], sbox_rot[ks], he, 1)
+        fric[i] = fric[i] + (x - x0)
+        q[i] = x
+
+
+@wp.kernel
+def shape_match(
+    q: wp.array(dtype=wp.vec3),
+    rest: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    attach: wp.array(dtype=wp.int32),
+    rigid_start: wp.array(dtype=wp.int32),
+    rigid_count: wp.array(dtype=wp.int32),
+    num_particles: int,
+    num_boxes: int,
+    kin_weight: float,
+    box_quat: wp.array(dtype=wp.quat),
+    box_pos: wp.array(dtype=wp.vec3),
+    box_rot: wp.array(dtype=wp.mat33),
+):
+    """Shape matching of one rigid box (one thread per world x box): best rigid transform of the
+    rest shape onto the current particles (grasped/pinned particles weigh ``kin_weight``), then
+    free particles are moved onto the rigid shape.  Rotation by warm-started iterative extraction
+    (Mueller et al. 2016) so it is smooth and deterministic."""
+    kb = wp.tid()
+    w = kb // num_boxes
+    b = kb - w * num_boxes
+    start = w * num_particles + rigid_start[b]
+    n = rigid_count[b]
+    c = wp.vec3(0.0, 0.0, 0.0)
+    c0 = wp.vec3(0.0, 0.0, 0.0)
+    wsum = float(0.0)
+    for k in range(n):
+        i = start + k
+        m = float(1.0)
+        if attach[i] >= 0 or inv_mass[i] == 0.0:
+            m = kin_weight
+        c = c + m * q[i]
+        c0 = c0 + m * rest[i]
+        wsum = wsum + m
+    c = c / wsum
+    c0 = c0 / wsum
+    A = wp.mat33(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    for k in range(n):
+        i = start + k
+        m = float(1.0)
+        if attach[i] >= 0 or inv_mass[i] == 0.0:
+            m = kin_weight
+        A = A + m * wp.outer(q[i] - c, rest[i] - c0)
+    qt = box_quat[kb]
+    a0 = wp.vec3(A[0, 0], A[1, 0], A[2, 0])
+    a1 = wp.vec3(A[0, 1], A[1, 1], A[2, 1])
+    a2 = wp.vec3(A[0, 2], A[1, 2], A[2, 2])
+    for it in range(8):
+        R = wp.quat_to_matrix(qt)
+        r0 = wp.vec3(R[0, 0], R[1, 0], R[2, 0])
+        r1 = wp.vec3(R[0, 1], R[1, 1], R[2, 1])
+        r2 = wp.vec3(R[0, 2], R[1, 2], R[2, 2])
+        om = (wp.cross(r0, a0) + wp.cross(r1, a1) + wp.cross(r2, a2)) * (
+            1.0 / (wp.abs(wp.dot(r0, a0) + wp.dot(r1, a1) + wp.dot(r2, a2)) + 1.0e-9)
+        )
+        wl = wp.length(om)
+        if wl < 1.0e-9:
+            break
+        qt = wp.normalize(wp.quat_from_axis_angle(om / wl, wl) * qt)
+    R = wp.quat_to_matrix(qt)
+    box_quat[kb] = qt
+    box_rot[kb] = R
+    box_pos[kb] = c - R * c0
+    for k in range(n):
+        i = start + k
+        if attach[i] < 0 and inv_mass[i] > 0.0:
+            q[i] = c + R * (rest[i] - c0)
+
+
+# ----------------------------------------------------------------------------- substep end
+@wp.kernel
+def update_velocity(
+    q: wp.array(dtype=wp.vec3),
+    q_prev: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    attach: wp.array(dtype=wp.int32),
+    fric: wp.array(dtype=wp.vec3),
+    inv_dt: float,
+    mu_s: float,
+    mu_k: float,
+    max_speed: float,
+    total: int,
+    chunk: int,
+):
+    tid = wp.tid()
+    for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
+        att = attach[i]
+        if att < 0 and inv_mass[i] == 0.0:
+            v[i] = wp.vec3(0.0, 0.0, 0.0)
+            continue
+        vi = (q[i] - q_prev[i]) * inv_dt
+        if att < 0:
+            f = fric[i]
+            fl = wp.length(f)
+            if fl > 1.0e-12:
+                n = f / fl
+                dvn = fl * inv_dt
+                vn = wp.dot(vi, n)
+                vt = vi - vn * n
+                vtl = wp.length(vt)
+                if vtl <= mu_s * dvn:
+                    vt = wp.vec3(0.0, 0.0, 0.0)
+                else:
+                    vt = vt * wp.max(0.0, 1.0 - mu_k * dvn / vtl)
+                vi = vn * n + vt
+        s = wp.length(vi)
+        if s > max_speed:
+            vi = vi * (max_speed / s)
+        v[i] = vi
+
+
+# ----------------------------------------------------------------------------- tethers
+@wp.kernel
+def update_tethers(
+    inv_mass: wp.array(dtype=float),
+    attach: wp.array(dtype=wp.int32),
+    obj: wp.array(dtype=wp.int32),
+    box_of: wp.array(dtype=wp.int32),
+    rest: wp.array(dtype=wp.vec3),
+    num_particles: int,
+    slack: float,
+    enabled: int,
+    anchors: wp.array(dtype=wp.int32),
+    tether_anchor: wp.array(dtype=wp.int32),
+    tether_len: wp.array(dtype=float),
+):
+    """Long-range attachments (one thread per world): every free cloth/rope particle is tethered
+    to the kinematic particle (pinned or grasped) of its object that is closest in rest space,
+    with maximum distance = rest distance x (1 + slack)."""
+    w = wp.tid()
+    base = w * num_particles
+    na = int(0)
+    if enabled != 0:
+        for li in range(num_particles):
+            i = base + li
+            if box_of[li] < 0 and (attach[i] >= 0 or inv_mass[i] == 0.0):
+                anchors[base + na] = li
+                na = na + 1
+    for li in range(num_particles):
+        i = base + li
+        best = int(-1)
+        bd = float(1.0e30)
+        if box_of[li] < 0 and attach[i] < 0 and inv_mass[i] > 0.0:
+            oi = obj[li]
+            ri = rest[i]
+            for k in range(na):
+                lj = anchors[base + k]
+                if obj[lj] == oi:
+                    d = wp.length(rest[base + lj] - ri)
+                    if d < bd:
+                        bd = d
+                        best = lj
+        if best >= 0:
+            tether_anchor[i] = base + best
+            tether_len[i] = bd * (1.0 + slack)
+        else:
+            tether_anchor[i] = -1
+            tether_len[i] = 0.0
+
+
+# ----------------------------------------------------------------------------- grasping
+@wp.kernel
+def grasp_update(
+    q: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    attach: wp.array(dtype=wp.int32),
+    attach_off: wp.array(dtype=wp.vec3),
+    picker_pos: wp.array(dtype=wp.vec3),
+    events: wp.array(dtype=wp.int32),
+    num_particles: int,
+    num_pickers: int,
+    grasp_radius: float,
+    closest_only: int,
+):
+    """Process grasp (event 1) and release (event 2) of every picker of one world (thread per world).
+    Releases first, then grasps in picker order, so results do not depend on scheduling."""
+    w = wp.tid()
+    base = w * num_particles
+    for p in range(num_pickers):
+        if events[w * num_pickers + p] == 2:
+            for li in range(num_particles):
+                i = base + li
+                if attach[i] == p:
+                    attach[i] = -1
+                    attach_off[i] = wp.vec3(0.0, 0.0, 0.0)
+    r2 = grasp_radius * grasp_radius
+    for p in range(num_pickers):
+        k = w * num_pickers + p
+        if events[k] == 1:
+            pp = picker_pos[k]
+            best = int(-1)
+            bd = r2
+            for li in range(num_particles):
+                i = base + li
+                if attach[i] < 0 and inv_mass[i] > 0.0:
+                    d = q[i] - pp
+                    d2 = wp.dot(d, d)
+                    if d2 <= r2:
+                        if closest_only == 0:
+                            attach[i] = p
+                            attach_off[i] = d
+                        elif d2 < bd or best < 0:
+                            best = li
+                            bd = d2
+            if best >= 0:
+                attach[base + best] = p
+                attach_off[base + best] = q[base + best] - pp

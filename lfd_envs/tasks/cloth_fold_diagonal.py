@@ -1,0 +1,160 @@
+"""ClothFoldDiagonal-v0 (and the Pinned/Unpinned ids): fold a square cloth along its diagonal.
+
+DMfD's ``ClothFoldRobot`` (pinned) and ``ClothFoldRobotHard`` (unpinned) in z-up coordinates.
+The cloth is a 0.75 m square of ``resolution x resolution`` particles (default 40) lying flat in
+the middle of the table; variants shift it by up to 2 cm and turn it by up to 3 degrees (DMfD
+had a single variant). One picker (default) starts 0.1 m above the middle of the left edge.
+
+* ``pinned=True``: a heavy block (half extents 0.1 x 0.1 x 0.04 m, centred at x = y = 0.25 m,
+  as in DMfD) rests on the cloth near the top-right corner and holds the cloth under it to the
+  table (those particles are pinned; the block is also a collider and is rendered).
+* ``pinned=False`` (default of ``ClothFoldDiagonal-v0``): the cloth slides freely.
+
+The fold carries the bottom-left corner onto the top-right corner (reflection across the
+top-left/bottom-right diagonal). Performance (DMfD "edges" metric), with the grid's left edge
+paired with the top edge and the right edge with the bottom edge::
+
+    p = -(|left - top|_F + |right - bottom|_F),     p_opt = 0
+
+(Frobenius norms over the particle rows). ``info["corner_distance"]`` is the distance between
+the bottom-left and the top-right corners. Reward = change of ``p`` per step.
+Default observation: a 32x32 RGB image (DMfD). Horizons: 100 (delta), 3 (pick_place).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lfd_envs.tasks.cloth_task import ClothTask
+from lfd_envs.tasks.particle_env import ParticleEnv, ParticleVectorEnv
+from lfd_envs.tasks.particle_task import Context, TaskVariant
+from lfd_envs.tasks.picker_actions import PickPlaceSchedule, Workspace
+
+__all__ = ["ClothFoldDiagonalTask", "ClothFoldDiagonalEnv", "ClothFoldDiagonalVectorEnv", "diagonal_edge_distance"]
+
+CLOTH_SIZE = 0.75
+MAX_OFFSET = 0.02
+MAX_YAW = np.deg2rad(3.0)
+BLOCK_CENTER_XY = (0.25, 0.25)
+BLOCK_HALF_EXTENTS = (0.1, 0.1, 0.04)
+
+
+def diagonal_edge_distance(grid: np.ndarray) -> np.ndarray:
+    """``|left - top|_F + |right - bottom|_F`` per world for grids ``(W, n, n, 3)``."""
+    left, right = grid[:, :, 0], grid[:, :, -1]
+    top, bottom = grid[:, -1, ::-1], grid[:, 0, ::-1]
+    return (np.linalg.norm((left - top).reshape(len(grid), -1), axis=1)
+            + np.linalg.norm((right - bottom).reshape(len(grid), -1), axis=1))
+
+
+class ClothFoldDiagonalTask(ClothTask):
+    """Scene, state and score of the diagonal fold (see module docstring).
+
+    Args:
+        pinned: Hold the top-right corner region with a heavy block.
+    """
+
+    name = "ClothFoldDiagonal-v0"
+    default_num_pickers = 1
+    horizons = {"delta": 100, "pick_place": 3}
+    default_obs_mode = "image"
+
+    def __init__(self, resolution: int | None = None, num_pickers: int | None = None,
+                 pinned: bool = False) -> None:
+        super().__init__(resolution, num_pickers)
+        if not isinstance(pinned, (bool, np.bool_)):
+            raise ValueError(f"pinned must be a bool, got {pinned!r}")
+        self.pinned = bool(pinned)
+        # pinned and unpinned variants differ (their ids are separate tasks)
+        self.name = "ClothFoldDiagonalPinned-v0" if self.pinned else "ClothFoldDiagonalUnpinned-v0"
+
+    def workspace(self) -> Workspace:
+        return Workspace((-0.6, -0.6, 0.0), (0.6, 0.6, 0.7), margin=self.picker_radius)
+
+    def pick_place_schedule(self) -> PickPlaceSchedule:
+        return PickPlaceSchedule(lift=0.02, arc_ratio=0.45, arc_max=0.6, carry_frames=64)
+
+    def camera(self):
+        from lfd_envs.render import Camera
+
+        return Camera(position=(0.0, -0.95, 1.05), look_at=(0.0, 0.02, 0.0), fov_y_deg=45.0)
+
+    @property
+    def block_center(self) -> np.ndarray:
+        """Centre of the pin block (resting on the cloth)."""
+        hz = BLOCK_HALF_EXTENTS[2]
+        return np.array([*BLOCK_CENTER_XY, 2.0 * self.particle_radius + hz + 1e-3])
+
+    def build(self, rng: np.random.Generator) -> TaskVariant:
+        from lfd_envs.sim import SceneBuilder
+
+        offset = rng.uniform(-MAX_OFFSET, MAX_OFFSET, size=2)
+        yaw = float(rng.uniform(-MAX_YAW, MAX_YAW))
+        builder = SceneBuilder()
+        handle = self.add_square_cloth(builder, CLOTH_SIZE, center=tuple(offset), yaw=yaw)
+        if self.pinned:
+            builder.add_static_box(self.block_center, BLOCK_HALF_EXTENTS)
+            builder.pin(handle.start + np.flatnonzero(self._under_block(offset, yaw)))
+        return TaskVariant(builder, {"offset": offset, "yaw": np.float64(yaw)})
+
+    def _under_block(self, offset: np.ndarray, yaw: float) -> np.ndarray:
+        """Mask ``(n*n,)`` of grid particles under the pin block's footprint."""
+        n = self.resolution
+        s = np.linspace(-0.5 * CLOTH_SIZE, 0.5 * CLOTH_SIZE, n)
+        y, x = np.meshgrid(s, s, indexing="ij")
+        c, si = np.cos(yaw), np.sin(yaw)
+        wx, wy = c * x - si * y + offset[0], si * x + c * y + offset[1]
+        return ((np.abs(wx - BLOCK_CENTER_XY[0]) <= BLOCK_HALF_EXTENTS[0])
+                & (np.abs(wy - BLOCK_CENTER_XY[1]) <= BLOCK_HALF_EXTENTS[1])).ravel()
+
+    def performance(self, positions: np.ndarray, ctx: Context) -> np.ndarray:
+        return -diagonal_edge_distance(self.grid(positions))
+
+    def metrics(self, positions: np.ndarray, ctx: Context) -> dict[str, np.ndarray]:
+        bl, tr = self.grid_index(0, 0), self.grid_index(-1, -1)
+        return {"corner_distance": np.linalg.norm(positions[:, bl] - positions[:, tr], axis=-1)}
+
+    # ------------------------------------------------------------------ for experts
+    def fold_pairs(self, num: int) -> tuple[np.ndarray, np.ndarray]:
+        """``num`` pick particles on the bottom-left half's border (the bottom-left corner
+        first, then points on the left and bottom edges) and their mirror partners."""
+        n = self.resolution
+        pts = [(0, 0)]
+        m = num // 2  # distinct distances from the corner
+        k = 1
+        while len(pts) < num:  # a left-edge point, then its bottom-edge twin
+            t = int(round(k * (n - 1) / (m + 1)))
+            pts.append((t, 0))
+            if len(pts) < num:
+                pts.append((0, t))
+            k += 1
+        r, c = np.array(pts).T
+        return self.grid_index(r, c), self.grid_index(n - 1 - c, n - 1 - r)
+
+
+class ClothFoldDiagonalEnv(ParticleEnv):
+    """ClothFoldDiagonal-v0 / ...Pinned-v0 / ...Unpinned-v0 (see module docstring).
+
+    Same arguments as every particle env plus ``pinned`` (default False).
+    """
+
+    task_class = ClothFoldDiagonalTask
+
+    def __init__(self, num_pickers: int | None = None, action_mode: str = "delta", obs_mode: str | None = None,
+                 image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
+                 render_mode: str | None = None, horizon: int | None = None, pinned: bool = False) -> None:
+        self._setup(dict(num_pickers=num_pickers, resolution=resolution, pinned=pinned), action_mode, obs_mode,
+                    image_size, device, render_mode, horizon)
+
+
+class ClothFoldDiagonalVectorEnv(ParticleVectorEnv):
+    """Batched diagonal fold (one engine call per frame for all worlds); ``pinned`` as above."""
+
+    task_class = ClothFoldDiagonalTask
+
+    def __init__(self, num_envs: int = 1, num_pickers: int | None = None, action_mode: str = "delta",
+                 obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
+                 resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
+                 horizon: int | None = None, pinned: bool = False) -> None:
+        self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution, pinned=pinned), action_mode,
+                    obs_mode, image_size, device, render_mode, horizon)

@@ -1,0 +1,211 @@
+"""Batched machinery of every particle task: ``W`` worlds of one task in ONE ``ParticleSim``.
+
+:class:`ParticleBatch` owns the engine, the action mode, the per-world task context and the
+renderers. The single env (``W = 1``) and the vector env (``W = num_envs``) are thin
+Gymnasium front ends over it (:mod:`lfd_envs.tasks.particle_env`).
+
+Variants: the start state of a variant is produced in a separate one-world *generator* engine
+(build the scene, run the task's preparation, place the pickers) and copied into world ``w``
+of the batch with ``ParticleSim.set_state(..., world=w)``; the other worlds are untouched, so a
+world's future never depends on its neighbours. Start states are cached per variant (LRU).
+"""
+
+from __future__ import annotations
+
+from collections import OrderedDict
+from typing import Any
+
+import numpy as np
+
+from lfd_envs.tasks.particle_task import Context, ParticleTask
+from lfd_envs.tasks.picker_actions import ActionMode, make_action_mode
+
+__all__ = ["ParticleBatch", "StartState"]
+
+#: where pickers wait while a variant is prepared (far above the scene)
+PARK_HEIGHT = 2.0
+CTX_PREFIX = "ctx/"
+
+
+class StartState:
+    """A prepared variant: its scene builder, engine state of one world and task context."""
+
+    __slots__ = ("builder", "sim_state", "ctx")
+
+    def __init__(self, builder: Any, sim_state: dict[str, np.ndarray], ctx: Context) -> None:
+        self.builder = builder
+        self.sim_state = sim_state
+        self.ctx = ctx
+
+
+def _rng_key(rng: np.random.Generator) -> tuple | None:
+    """Cache key of a freshly seeded generator (its seed entropy), or None."""
+    seq = getattr(rng.bit_generator, "seed_seq", None)
+    entropy = getattr(seq, "entropy", None)
+    if entropy is None:
+        return None
+    spawn = tuple(getattr(seq, "spawn_key", ()))
+    return (tuple(np.atleast_1d(entropy).tolist()), spawn)
+
+
+class ParticleBatch:
+    """``num_worlds`` worlds of ``task`` stepped together.
+
+    Args:
+        task: The task description.
+        num_worlds: Number of worlds ``W``.
+        action_mode: ``"delta"`` or ``"pick_place"``.
+        device: Warp device.
+        cache_size: Prepared variants kept in memory.
+    """
+
+    def __init__(self, task: ParticleTask, num_worlds: int, action_mode: str, device: str = "cpu",
+                 cache_size: int = 128) -> None:
+        from lfd_envs.sim import ParticleSim
+
+        self.task = task
+        self.num_worlds = int(num_worlds)
+        self.device = device
+        self.workspace = task.workspace()
+        self.action_mode: ActionMode = make_action_mode(
+            action_mode, task.num_pickers, self.workspace, schedule=task.pick_place_schedule())
+        params = task.sim_params()
+        first = task.build(np.random.default_rng(0))  # any variant: fixes the topology
+        self._gen = ParticleSim(first.builder, 1, params, task.num_pickers, device)
+        self.sim = ParticleSim([first.builder] * self.num_worlds, None, params, task.num_pickers, device)
+        self._cache: OrderedDict[tuple, StartState] = OrderedDict()
+        self._cache_size = int(cache_size)
+        start = self._prepare(first, np.random.default_rng(0))
+        self.ctx: Context = {k: np.repeat(v[None], self.num_worlds, axis=0) for k, v in start.ctx.items()}
+        self.p0 = np.zeros(self.num_worlds)
+        self._positions: np.ndarray | None = None
+        self._evaluation: dict[str, np.ndarray] | None = None
+        self._renderers: dict[tuple[int, int], Any] = {}
+
+    # ------------------------------------------------------------------ variants
+    def _prepare(self, variant: Any, rng: np.random.Generator) -> StartState:
+        gen, task = self._gen, self.task
+        gen.reset_world(0, variant.builder)
+        park = np.zeros((task.num_pickers, 3))
+        park[:, 2] = PARK_HEIGHT
+        gen.set_picker_positions(park, world=0)
+        task.prepare(gen, variant, rng)
+        gen.step(gen.picker_positions, np.zeros((1, task.num_pickers), bool))  # release all
+        pos = gen.positions[0]
+        gen.set_picker_positions(task.picker_start(pos, variant.data), world=0)
+        ctx = task.episode_context(pos, variant.data)
+        ctx.update(self._static_box_context(variant.builder))
+        return StartState(variant.builder, gen.get_state(0), ctx)
+
+    @staticmethod
+    def _static_box_context(builder: Any) -> Context:
+        boxes = builder.static_boxes
+        return {
+            "static_box_center": np.array([b.center for b in boxes], np.float64).reshape(-1, 3),
+            "static_box_half_extents": np.array([b.half_extents for b in boxes], np.float64).reshape(-1, 3),
+            "static_box_yaw": np.array([b.yaw for b in boxes], np.float64),
+        }
+
+    def start_state(self, rng: np.random.Generator) -> StartState:
+        """Prepared start state of the variant drawn by ``rng`` (cached by the rng's seed)."""
+        key = _rng_key(rng)
+        if key is not None and key in self._cache:
+            self._cache.move_to_end(key)
+            return self._cache[key]
+        start = self._prepare(self.task.build(rng), rng)
+        if key is not None and self._cache_size > 0:
+            self._cache[key] = start
+            if len(self._cache) > self._cache_size:
+                self._cache.popitem(last=False)
+        return start
+
+    def reset_world(self, world: int, rng: np.random.Generator) -> None:
+        """Put world ``world`` into the start state of the variant drawn by ``rng``."""
+        start = self.start_state(rng)
+        self.sim.reset_world(world, start.builder)
+        self.sim.set_state(start.sim_state, world=world)
+        for k, v in start.ctx.items():
+            self.ctx[k][world] = v
+        self._positions = self._evaluation = None
+        self.p0[world] = self.performance()[world]
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, actions: np.ndarray) -> None:
+        """One env step of every world with validated actions ``(W, A)``."""
+        targets, grasp = self.action_mode.plan(actions, self.sim.picker_positions)
+        for t in range(targets.shape[0]):
+            self.sim.step(targets[t], grasp[t])
+        self._positions = self._evaluation = None
+
+    @property
+    def positions(self) -> np.ndarray:
+        """Particle positions ``(W, N, 3)`` float32 (cached until the next change; do not modify)."""
+        if self._positions is None:
+            self._positions = self.sim.positions
+        return self._positions
+
+    @property
+    def pickers(self) -> np.ndarray:
+        """Picker centres ``(W, P, 3)``."""
+        return self.sim.picker_positions
+
+    # ------------------------------------------------------------------ scoring
+    def _scores(self) -> dict[str, np.ndarray]:
+        if self._evaluation is None:
+            scores = self.task.evaluate(self.positions, self.ctx)
+            self._evaluation = {k: np.asarray(v, dtype=np.float64) for k, v in scores.items()}
+        return self._evaluation
+
+    def performance(self) -> np.ndarray:
+        """Performance per world ``(W,)``."""
+        return self._scores()["performance"].copy()
+
+    def normalized(self, p: np.ndarray) -> np.ndarray:
+        """Normalised performance per world for performances ``p`` ``(W,)``."""
+        return np.asarray(self.task.normalized_performance(p, self.p0), dtype=np.float64)
+
+    def metrics(self) -> dict[str, np.ndarray]:
+        """Extra per-world ``info`` numbers."""
+        return {k: v.copy() for k, v in self._scores().items() if k != "performance"}
+
+    # ------------------------------------------------------------------ observations
+    def state_obs(self) -> np.ndarray:
+        """Reduced states ``(W, D)`` float32."""
+        return self.task.reduced_state(self.positions, self.pickers, self.ctx).astype(np.float32)
+
+    def particles_obs(self) -> np.ndarray:
+        """All particle positions then the pickers, ``(W, N + P, 3)`` float32."""
+        return np.concatenate([self.positions, self.pickers.astype(np.float32)], axis=1)
+
+    def images(self, height: int, width: int) -> np.ndarray:
+        """RGB images ``(W, height, width, 3)`` uint8 from the task camera."""
+        renderer = self._renderers.get((height, width))
+        if renderer is None:
+            from lfd_envs.render import Renderer
+
+            renderer = Renderer(width, height, self.task.camera(), self.device)
+            self._renderers[(height, width)] = renderer
+        layers = self.task.render_layers(self.positions, self.pickers, self.ctx)
+        return renderer.render(layers, self.num_worlds)
+
+    # ------------------------------------------------------------------ state
+    def get_state(self, world: int) -> dict[str, np.ndarray]:
+        """Engine state and task context of one world (copies)."""
+        state = self.sim.get_state(world)
+        state.update({CTX_PREFIX + k: np.array(v[world], copy=True) for k, v in self.ctx.items()})
+        return state
+
+    def set_state(self, world: int, state: dict[str, np.ndarray]) -> None:
+        """Restore one world from :meth:`get_state` (``ValueError`` on a malformed state)."""
+        ctx = {k[len(CTX_PREFIX):]: np.asarray(v) for k, v in state.items() if k.startswith(CTX_PREFIX)}
+        missing = sorted(set(self.ctx) - set(ctx))
+        if missing:
+            raise ValueError(f"state is missing task context {missing}; pass a dict from get_state()")
+        for k, v in ctx.items():
+            if k in self.ctx and v.shape != self.ctx[k].shape[1:]:
+                raise ValueError(f"state[{CTX_PREFIX + k!r}] must have shape {self.ctx[k].shape[1:]}, got {v.shape}")
+        sim_state = {k: v for k, v in state.items() if not k.startswith(CTX_PREFIX)}
+        self.sim.set_state(sim_state, world=world)
+        for k in self.ctx:
+            self.ctx[k][world] = ctx[k]
+        self._positions = self._evaluation = None

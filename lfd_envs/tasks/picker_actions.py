@@ -1,0 +1,298 @@
+"""Picker action modes shared by every particle task (SPEC §4.3), batched over worlds.
+
+An action mode turns a batch of normalised actions ``(W, A)`` into the picker motion of one
+env step: picker targets ``(T, W, P, 3)`` and grasp flags ``(T, W, P)`` for ``T`` engine frames
+(each frame moves every picker linearly to its target, see :meth:`ParticleSim.step`).
+The frame count ``T`` of a step is the same for every world and every action, so a world's
+future never depends on the other worlds of a batch (a vector env equals single envs).
+
+* :class:`DeltaActions` (SoftGym/DMfD) - per picker ``[dx, dy, dz, grasp]``: the picker moves
+  ``0.01 * a`` m per frame for ``action_repeat`` = 8 frames (<= 0.08 m per axis and step) and
+  grasps while ``grasp > 0``. Positions are clipped to the workspace (minus the picker radius).
+* :class:`PickPlaceActions` (MAIL) - per picker ``[pick xyz, place xyz]`` normalised to the
+  task's workspace box; one step runs approach -> descend -> grasp -> lift -> carry -> lower ->
+  release -> retreat for all pickers at once, then lets the scene settle.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+from gymnasium import spaces
+
+__all__ = ["Workspace", "ActionMode", "DeltaActions", "PickPlaceActions", "PickPlaceSchedule",
+           "ACTION_MODES", "make_action_mode", "carry_point", "arc_length"]
+
+
+@dataclass(frozen=True)
+class Workspace:
+    """Axis-aligned box (metres) in which picker centres move; ``low[2]`` is usually the table.
+
+    Picker centres are kept ``margin`` (the picker radius) inside the box, so a picker resting
+    on the table has its centre at ``z = low[2] + margin``.
+    """
+
+    low: tuple[float, float, float]
+    high: tuple[float, float, float]
+    margin: float = 0.0
+
+    def __post_init__(self) -> None:
+        lo, hi = np.asarray(self.low, float), np.asarray(self.high, float)
+        if lo.shape != (3,) or hi.shape != (3,) or np.any(hi - lo <= 2 * self.margin):
+            raise ValueError(f"workspace needs low < high (by more than 2*margin), got {self.low}, {self.high}")
+
+    @property
+    def lo(self) -> np.ndarray:
+        return np.asarray(self.low, dtype=np.float64)
+
+    @property
+    def hi(self) -> np.ndarray:
+        return np.asarray(self.high, dtype=np.float64)
+
+    def clip(self, pos: np.ndarray) -> np.ndarray:
+        """Clip picker centres ``(..., 3)`` into ``[low + margin, high - margin]``."""
+        return np.clip(pos, self.lo + self.margin, self.hi - self.margin)
+
+    def to_world(self, a: np.ndarray) -> np.ndarray:
+        """Map normalised coordinates in [-1, 1] ``(..., 3)`` to metres (not clipped)."""
+        return self.lo + (np.asarray(a, dtype=np.float64) + 1.0) * 0.5 * (self.hi - self.lo)
+
+    def to_action(self, pos: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`to_world`, clipped to [-1, 1]."""
+        a = 2.0 * (np.asarray(pos, dtype=np.float64) - self.lo) / (self.hi - self.lo) - 1.0
+        return np.clip(a, -1.0, 1.0)
+
+
+class ActionMode(ABC):
+    """How a normalised action drives the pickers during one env step."""
+
+    name: ClassVar[str]
+    #: numbers per picker in the action vector
+    per_picker: ClassVar[int]
+
+    def __init__(self, num_pickers: int, workspace: Workspace) -> None:
+        self.num_pickers = int(num_pickers)
+        self.workspace = workspace
+
+    @property
+    def action_space(self) -> spaces.Box:
+        """float32 ``Box`` in [-1, 1] of ``per_picker * num_pickers`` numbers."""
+        return spaces.Box(-1.0, 1.0, (self.per_picker * self.num_pickers,), np.float32)
+
+    @property
+    @abstractmethod
+    def frames_per_step(self) -> int:
+        """Engine frames ``T`` run by one env step (the same for every action)."""
+
+    @abstractmethod
+    def plan(self, actions: np.ndarray, pickers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Picker targets ``(T, W, P, 3)`` and grasp flags ``(T, W, P)`` for actions ``(W, A)``.
+
+        ``pickers`` are the current picker centres ``(W, P, 3)``.
+        """
+
+
+class DeltaActions(ActionMode):
+    """Per picker ``[dx, dy, dz, grasp]`` in [-1, 1]: ``step_size * a`` metres per frame."""
+
+    name = "delta"
+    per_picker = 4
+
+    def __init__(self, num_pickers: int, workspace: Workspace, action_repeat: int = 8,
+                 step_size: float = 0.01) -> None:
+        super().__init__(num_pickers, workspace)
+        self.action_repeat = int(action_repeat)
+        self.step_size = float(step_size)
+
+    @property
+    def frames_per_step(self) -> int:
+        return self.action_repeat
+
+    def plan(self, actions: np.ndarray, pickers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        a = np.asarray(actions, dtype=np.float64).reshape(len(actions), self.num_pickers, 4)
+        delta = a[..., :3] * self.step_size
+        grasp = np.broadcast_to(a[..., 3] > 0.0, (self.action_repeat,) + a.shape[:2])
+        targets = np.empty((self.action_repeat,) + pickers.shape)
+        pos = np.asarray(pickers, dtype=np.float64)
+        for t in range(self.action_repeat):
+            pos = self.workspace.clip(pos + delta)
+            targets[t] = pos
+        return targets, np.ascontiguousarray(grasp)
+
+
+@dataclass(frozen=True)
+class PickPlaceSchedule:
+    """Timing and path of one pick-and-place step.
+
+    Path of a picker: approach (above the pick point at ``hover``) -> descend -> grasp -> lift
+    (vertically by ``lift``) -> carry along an arc to above the place point -> lower -> release
+    -> retreat (``hover`` above the place point). The carry arc rises ``arc`` above the straight
+    line between its ends, ``arc = clip(arc_ratio * d, 0, arc_max)`` for a horizontal distance
+    ``d``: with ``arc_ratio = 0.5`` the held point moves on a half circle around the middle, the
+    natural motion of a fold (the held edge keeps its distance to the fold line); with 0 it is a
+    straight carry (rope dragging, box moving). See :func:`carry_point`.
+
+    Each phase moves at ``speed`` (m/frame) but takes at least one and at most ``*_frames``
+    frames (faster when the distance needs it). Phase lengths are per world; the step always
+    lasts :attr:`total_frames` frames and worlds that finish early settle with released pickers.
+
+    Attributes:
+        hover: Approach height (m) above the pick point, and retreat height after release.
+        lift: Vertical lift (m) after the grasp and before the carry (and the final lowering).
+        arc_ratio: Arc height per metre of horizontal carry distance.
+        arc_max: Upper bound of the arc height (m).
+        free_speed: Speed (m/frame) of empty pickers.
+        carry_speed: Speed (m/frame) of pickers that hold something.
+    """
+
+    hover: float = 0.05
+    lift: float = 0.05
+    arc_ratio: float = 0.0
+    arc_max: float = 0.4
+    free_speed: float = 0.03
+    carry_speed: float = 0.015
+    approach_frames: int = 24
+    descend_frames: int = 8
+    grasp_frames: int = 1
+    lift_frames: int = 8
+    carry_frames: int = 56
+    lower_frames: int = 8
+    release_frames: int = 1
+    retreat_frames: int = 4
+    settle_frames: int = 10
+
+    @property
+    def total_frames(self) -> int:
+        return (self.approach_frames + self.descend_frames + self.grasp_frames + self.lift_frames
+                + self.carry_frames + self.lower_frames + self.release_frames + self.retreat_frames
+                + self.settle_frames)
+
+    def arc_height(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+        """Arc height ``(...)`` of carries from ``start`` to ``end`` ``(..., 3)``."""
+        d = np.linalg.norm(np.asarray(end)[..., :2] - np.asarray(start)[..., :2], axis=-1)
+        return np.clip(self.arc_ratio * d, 0.0, self.arc_max)
+
+    def waypoints(self, pick: np.ndarray, place: np.ndarray, top: float) -> dict[str, np.ndarray]:
+        """Key points ``(..., 3)`` of the path: ``above_pick``, ``lifted``, ``above_place``,
+        ``retreat`` (heights capped at ``top``)."""
+        def raised(p: np.ndarray, dz: float) -> np.ndarray:
+            out = np.array(p, dtype=np.float64, copy=True)
+            out[..., 2] = np.minimum(out[..., 2] + dz, top)
+            return out
+
+        return {"above_pick": raised(pick, self.hover), "lifted": raised(pick, self.lift),
+                "above_place": raised(place, self.lift), "retreat": raised(place, self.hover)}
+
+
+def carry_point(start: np.ndarray, end: np.ndarray, height: np.ndarray, alpha: np.ndarray, top: float) -> np.ndarray:
+    """Point at progress ``alpha`` in [0, 1] of the carry arc from ``start`` to ``end``.
+
+    ``theta = pi * alpha``; the point moves ``(1 - cos theta) / 2`` of the way along the
+    straight line and rises ``height * sin theta`` above it (a half ellipse; a half circle
+    around the midpoint when ``height`` is half the horizontal distance). Shapes broadcast:
+    ``start``/``end`` ``(..., 3)``, ``height`` ``(...)``, ``alpha`` ``(...)``.
+    """
+    theta = np.pi * np.asarray(alpha, dtype=np.float64)
+    frac = (0.5 * (1.0 - np.cos(theta)))[..., None]
+    point = start + frac * (end - start)
+    point[..., 2] = np.minimum(point[..., 2] + np.asarray(height) * np.sin(theta), top)
+    return point
+
+
+def arc_length(start: np.ndarray, end: np.ndarray, height: np.ndarray) -> np.ndarray:
+    """Length estimate ``(...)`` of a carry arc (chord plus twice the rise, an upper bound)."""
+    return np.linalg.norm(end - start, axis=-1) + 2.0 * np.asarray(height)
+
+
+class PickPlaceActions(ActionMode):
+    """Per picker ``[pick x, y, z, place x, y, z]`` in [-1, 1], normalised to the workspace box.
+
+    The action vector lists the picks of all pickers first, then their places (MAIL layout):
+    ``[pick_1, ..., pick_P, place_1, ..., place_P]``, 3 numbers each.
+    """
+
+    name = "pick_place"
+    per_picker = 6
+
+    def __init__(self, num_pickers: int, workspace: Workspace,
+                 schedule: PickPlaceSchedule | None = None) -> None:
+        super().__init__(num_pickers, workspace)
+        self.schedule = schedule or PickPlaceSchedule()
+
+    @property
+    def frames_per_step(self) -> int:
+        return self.schedule.total_frames
+
+    def split(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Pick and place points in metres, each ``(W, P, 3)``, clipped to the workspace."""
+        a = np.asarray(actions, dtype=np.float64).reshape(len(actions), 2, self.num_pickers, 3)
+        ws = self.workspace
+        return ws.clip(ws.to_world(a[:, 0])), ws.clip(ws.to_world(a[:, 1]))
+
+    def join(self, pick: np.ndarray, place: np.ndarray) -> np.ndarray:
+        """Normalised action ``(..., 6P)`` of pick/place points ``(..., P, 3)`` in metres."""
+        ws = self.workspace
+        pick, place = np.asarray(pick, np.float64), np.asarray(place, np.float64)
+        a = np.concatenate([ws.to_action(pick), ws.to_action(place)], axis=-2)
+        return a.reshape(a.shape[:-2] + (-1,)).astype(np.float32)
+
+    def phases(self, pick: np.ndarray, place: np.ndarray) -> list[tuple[np.ndarray, bool, int, float, np.ndarray | None]]:
+        """Phase list ``(end point (W, P, 3), grasp, max frames, speed, arc height or None)``."""
+        s = self.schedule
+        top = self.workspace.hi[2] - self.workspace.margin
+        wpt = s.waypoints(pick, place, top)
+        arc = s.arc_height(wpt["lifted"], wpt["above_place"])
+        return [
+            (wpt["above_pick"], False, s.approach_frames, s.free_speed, None),
+            (pick, False, s.descend_frames, s.free_speed, None),
+            (pick, True, s.grasp_frames, s.carry_speed, None),
+            (wpt["lifted"], True, s.lift_frames, s.carry_speed, None),
+            (wpt["above_place"], True, s.carry_frames, s.carry_speed, arc),
+            (place, True, s.lower_frames, s.carry_speed, None),
+            (place, False, s.release_frames, s.free_speed, None),
+            (wpt["retreat"], False, s.retreat_frames, s.free_speed, None),
+        ]
+
+    def plan(self, actions: np.ndarray, pickers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        pick, place = self.split(actions)
+        start = np.asarray(pickers, dtype=np.float64)
+        w, p = start.shape[:2]
+        total = self.frames_per_step
+        top = self.workspace.hi[2] - self.workspace.margin
+        targets = np.empty((total, w, p, 3))
+        grasp = np.zeros((total, w, p), dtype=bool)
+        t0 = np.zeros(w, dtype=np.int64)  # first frame of the current phase, per world
+        frames = np.arange(total)[:, None]  # (T, 1)
+        for end, grab, max_frames, speed, arc in self.phases(pick, place):
+            length = np.linalg.norm(end - start, axis=-1) if arc is None else arc_length(start, end, arc)
+            n = np.clip(np.ceil(length.max(axis=-1) / speed - 1e-9), 1, max_frames).astype(np.int64)  # (W,)
+            k = frames - t0[None, :] + 1  # (T, W) frame number inside this phase
+            alpha = np.clip(k / n[None, :], 0.0, 1.0)[..., None]  # (T, W, 1)
+            inside = (k >= 1) & (k <= n[None, :])
+            if arc is None:
+                seg = start[None] + alpha[..., None] * (end - start)[None]
+            else:
+                seg = carry_point(start[None], end[None], arc[None], np.broadcast_to(alpha, (total, w, p)), top)
+            targets = np.where(inside[..., None, None], seg, targets)
+            grasp[inside] = grab
+            start, t0 = end, t0 + n
+        tail = frames >= t0[None, :]  # settle: stay at the retreat point, released
+        targets = np.where(tail[..., None, None], start[None], targets)
+        grasp[tail] = False
+        return targets, grasp
+
+
+ACTION_MODES = ("delta", "pick_place")
+
+
+def make_action_mode(name: str, num_pickers: int, workspace: Workspace,
+                     schedule: PickPlaceSchedule | None = None, action_repeat: int = 8) -> ActionMode:
+    """Action mode ``name`` (one of :data:`ACTION_MODES`)."""
+    if name == "delta":
+        return DeltaActions(num_pickers, workspace, action_repeat=action_repeat)
+    if name == "pick_place":
+        return PickPlaceActions(num_pickers, workspace, schedule)
+    raise ValueError(f"action_mode must be one of {ACTION_MODES}, got {name!r}")
