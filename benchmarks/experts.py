@@ -8,7 +8,7 @@ numbers in the docs can be reproduced with the same command.
 
 Examples::
 
-    python -m benchmarks.experts --variants 100
+    python -m benchmarks.experts --variants 100 [--jobs 16]
     python -m benchmarks.experts --variants 10 --tasks ClothFold-v0 --modes delta
 """
 
@@ -47,10 +47,25 @@ ROWS: tuple[Row, ...] = tuple(
     for mode in ("delta", "pick_place")
 )
 
+#: DryCloth / ThreeBoxes (MAIL): teacher and student picker counts; the DryCloth targets are
+#: MAIL's and apply to its pick-and-place action space
+ROWS += tuple(
+    Row(env_id, pickers, mode, target if mode == "pick_place" else None)
+    for env_id, pickers, target in (
+        ("DryCloth-v0", 2, 0.74),
+        ("DryCloth-v0", 1, 0.48),
+        ("ThreeBoxes-v0", 3, None),
+        ("ThreeBoxes-v0", 2, None),
+        ("ThreeBoxes-v0", 1, None),
+    )
+    for mode in ("pick_place", "delta")
+)
+
 
 def evaluate_expert(env_id: str, num_variants: int, num_pickers: int | None = None, action_mode: str = "delta",
-                    split: str = "eval", resolution: int | None = None, seed: int = 0) -> np.ndarray:
-    """Final p̂ of the scripted expert on variants ``0 .. num_variants-1`` of ``split``."""
+                    split: str = "eval", resolution: int | None = None, seed: int = 0,
+                    first_variant: int = 0) -> np.ndarray:
+    """Final p̂ of the scripted expert on variants ``first_variant .. first_variant+num_variants-1``."""
     import gymnasium as gym
 
     import lfd_envs  # noqa: F401  (registers the ids)
@@ -64,7 +79,7 @@ def evaluate_expert(env_id: str, num_variants: int, num_pickers: int | None = No
     env = gym.make(env_id, **kwargs)
     expert = make_expert(env)
     scores = []
-    for k in range(num_variants):
+    for k in range(first_variant, first_variant + num_variants):
         obs, info = env.reset(seed=seed, options={"variant": k, "split": split})
         expert.reset()
         done = False
@@ -77,28 +92,54 @@ def evaluate_expert(env_id: str, num_variants: int, num_pickers: int | None = No
     return np.asarray(scores, dtype=np.float64)
 
 
+def _chunk(args: tuple) -> tuple[int, int, np.ndarray, float]:
+    """Worker: (row index, first variant, scores, seconds)."""
+    import warp as wp
+
+    wp.config.quiet = True
+    index, row, first, count, resolution = args
+    t0 = time.perf_counter()
+    scores = evaluate_expert(row.env_id, count, row.num_pickers, row.action_mode, resolution=resolution,
+                             first_variant=first)
+    return index, first, scores, time.perf_counter() - t0
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--variants", type=int, default=100, help="eval variants per row (default 100)")
     parser.add_argument("--tasks", default="", help="comma-separated env ids (default: all rows)")
     parser.add_argument("--modes", default="delta,pick_place", help="comma-separated action modes")
     parser.add_argument("--resolution", type=int, default=None, help="particles per side (default: task default)")
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes (variants are split into chunks)")
     args = parser.parse_args(argv)
     import warp as wp
 
     wp.config.quiet = True
     tasks = set(filter(None, args.tasks.split(",")))
     modes = set(args.modes.split(","))
+    rows = [r for r in ROWS if (not tasks or r.env_id in tasks) and r.action_mode in modes]
+    chunk = args.variants if args.jobs <= 1 else max(1, -(-args.variants * len(rows) // (2 * args.jobs)))
+    work = [(i, row, first, min(chunk, args.variants - first), args.resolution)
+            for i, row in enumerate(rows) for first in range(0, args.variants, chunk)]
     print(f"Scripted experts: mean final p̂ over eval variants 0..{args.variants - 1} "
           f"(resolution {args.resolution or 'default'})\n")
     print("| task | pickers | action mode | mean p̂ | std | min | target | met | s/episode |")
     print("|---|---|---|---|---|---|---|---|---|")
-    for row in ROWS:
-        if (tasks and row.env_id not in tasks) or row.action_mode not in modes:
+    results: dict[int, list[tuple[int, np.ndarray, float]]] = {i: [] for i in range(len(rows))}
+    if args.jobs <= 1:
+        outputs = map(_chunk, work)
+    else:
+        from concurrent.futures import ProcessPoolExecutor
+
+        pool = ProcessPoolExecutor(args.jobs)
+        outputs = pool.map(_chunk, work)
+    for index, first, scores, sec in outputs:
+        results[index].append((first, scores, sec))
+        if sum(len(s) for _, s, _ in results[index]) < args.variants:
             continue
-        t0 = time.perf_counter()
-        s = evaluate_expert(row.env_id, args.variants, row.num_pickers, row.action_mode, resolution=args.resolution)
-        sec = (time.perf_counter() - t0) / len(s)
+        row = rows[index]
+        s = np.concatenate([sc for _, sc, _ in sorted(results[index], key=lambda r: r[0])])
+        sec = sum(t for _, _, t in results[index]) / len(s)
         target = "" if row.target is None else f"{row.target:.3f}"
         met = "" if row.target is None else ("yes" if s.mean() >= row.target else "no")
         print(f"| {row.env_id} | {row.num_pickers} | {row.action_mode} | {s.mean():.3f} | {s.std():.3f} | "

@@ -36,6 +36,18 @@ def _median_seconds(fn: Callable[[], Any], repeats: int, budget_s: float = 1.5) 
     return statistics.median(wall), statistics.median(cpu)
 
 
+def _cpu_model() -> str:
+    """CPU model name from /proc/cpuinfo (Linux), else ``platform.processor()``."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or platform.machine()
+
+
 def environment_info() -> dict[str, str]:
     """Versions and hardware, printed above the tables."""
     import numpy as np
@@ -46,6 +58,7 @@ def environment_info() -> dict[str, str]:
         "platform": platform.platform(),
         "processor": platform.processor() or platform.machine(),
         "cpu_count": str(os.cpu_count()),
+        "cpu_model": _cpu_model(),
     }
     try:
         import warp as wp
@@ -135,21 +148,461 @@ def render_rows(
     return rows
 
 
+# ---------------------------------------------------------------------------- MoPA
+MOPA_BENCH_ENVS = ("Push2DObstacle-v0", "SawyerPushObstacle-v0", "SawyerLiftObstacle-v0", "SawyerAssemblyObstacle-v0")
+
+
+def _mopa_planner_row(env_id: str, rrt_calls: int, budget_s: float, seed: int) -> dict[str, Any] | None:
+    """Planner statistics of uniform random MoPA actions on one task (None if the task is missing).
+
+    Acts until ``rrt_calls`` queries needed RRT-Connect or ``budget_s`` seconds passed.
+    """
+    import gymnasium as gym
+    import numpy as np
+
+    import lfd_envs  # noqa: F401
+    from lfd_agents.mopa import make_mopa_env
+
+    try:
+        env = make_mopa_env(gym.make(env_id))
+    except Exception as exc:  # a task not (yet) available must not stop the other rows
+        print(f"# mopa: skipping {env_id}: {type(exc).__name__}: {exc}")
+        return None
+    rng = np.random.default_rng(seed)
+    env.reset(seed=seed)
+    queries, rrt, modes = [], [], {}
+    t0 = time.perf_counter()
+    actions = 0
+    while len(rrt) < rrt_calls and time.perf_counter() - t0 < budget_s:
+        actions += 1
+        _, _, term, trunc, info = env.step(rng.uniform(-1, 1, env.action_space.shape))
+        mode = info["mopa_mode"]
+        modes[mode] = modes.get(mode, 0) + 1
+        if mode not in ("direct", "invalid_target"):
+            queries.append(info["mopa_planning_time"])
+        if info["mopa_planner_used"]:
+            rrt.append(info["mopa_planning_time"])
+        if term or trunc:
+            env.reset()
+    wall = time.perf_counter() - t0
+    steps = env.low_level_steps
+    env.close()
+    ms = lambda xs, f: round(1e3 * float(f(xs)), 2) if xs else None  # noqa: E731
+    return {
+        "section": "mopa-planner", "env": env_id, "actions": actions,
+        "queries": len(queries), "queries_per_s": round(len(queries) / max(sum(queries), 1e-9), 1),
+        "query_median_ms": ms(queries, np.median), "query_mean_ms": ms(queries, np.mean),
+        "rrt_calls": len(rrt), "rrt_median_ms": ms(rrt, np.median), "rrt_mean_ms": ms(rrt, np.mean),
+        "rrt_failed": modes.get("failed", 0), "straight_line": modes.get("interpolation", 0),
+        "direct": modes.get("direct", 0), "low_level_steps_per_s": round(steps / wall, 1),
+    }
+
+
+def mopa_training_rows(device: str = "cpu", env_id: str = "Push2DObstacle-v0", steps: int = 600,
+                       seed: int = 0) -> list[dict[str, Any]]:
+    """Training throughput of MoPA-SAC vs SAC: low-level env steps/s including gradient updates.
+
+    ``steps`` low-level env steps each (MoPA counts every waypoint), learning starts after a
+    third of them, batch 256, one torch thread. ``device`` is unused (CPU only).
+    """
+    import gymnasium as gym
+    import torch
+
+    import lfd_envs  # noqa: F401
+    from stable_baselines3 import SAC
+
+    from lfd_agents.mopa import MoPASAC
+
+    rows = []
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        for name in ("mopa_sac", "sac"):
+            env = gym.make(env_id)
+            common = dict(learning_starts=steps // 3, batch_size=256, device="cpu", verbose=0)
+            t0 = time.perf_counter()
+            if name == "sac":
+                SAC("MlpPolicy", env, seed=seed, **common).learn(steps)
+                done = steps
+            else:
+                agent = MoPASAC.for_benchmark(env, seed=seed, **common)
+                agent.learn(steps)
+                done = agent.train_env.low_level_steps
+            wall = time.perf_counter() - t0
+            rows.append({"section": "mopa-training", "env": env_id, "agent": name, "env_steps": done,
+                         "wall_s": round(wall, 2), "env_steps_per_s": round(done / wall, 1)})
+    finally:
+        torch.set_num_threads(threads)
+    return rows
+
+
+def mopa_rows(device: str = "cpu", rrt_calls: int = 15, budget_s: float = 60.0, seed: int = 0) -> list[dict[str, Any]]:
+    """MoPA planner speed per obstructed task (tasks not yet available are skipped).
+
+    Rows: uniform random MoPA actions until ``rrt_calls`` queries needed RRT-Connect (or
+    ``budget_s`` passed), with the task defaults of ``lfd_agents.mopa.MOPA_DEFAULTS`` (1 s limit). ``query_*``: every planning
+    query (straight line first, then RRT-Connect); ``rrt_*``: queries where RRT-Connect ran
+    (MoPA-RL reports ≈0.3 s per planner call; target ≤ 0.1 s median on the Sawyer tasks).
+    ``device`` is unused (CPU only).
+    """
+    rows = (_mopa_planner_row(env_id, rrt_calls, budget_s, seed) for env_id in MOPA_BENCH_ENVS)
+    return [r for r in rows if r is not None]
+
+
+# ---------------------------------------------------------------------------- MuJoCo envs
+MUJOCO_BENCH_ENVS = ("Push2DObstacle-v0", "SawyerPushObstacle-v0", "SawyerLiftObstacle-v0",
+                     "SawyerAssemblyObstacle-v0")
+
+
+def _mujoco_steps_per_s(env_id: str, obs_mode: str, steps: int, repeats: int, seed: int) -> tuple[float, float]:
+    """Median (wall, CPU) env steps/s of uniform random actions (episodes reset when they end)."""
+    import gymnasium as gym
+    import numpy as np
+
+    import lfd_envs  # noqa: F401  (registers the ids)
+
+    env = gym.make(env_id, obs_mode=obs_mode).unwrapped
+    rng = np.random.default_rng(seed)
+    env.reset(seed=seed)
+
+    def run() -> None:
+        for _ in range(steps):
+            _, _, term, trunc, _ = env.step(rng.uniform(-1, 1, env.action_space.shape))
+            if term or trunc:
+                env.reset()
+
+    sec, cpu = _median_seconds(run, repeats, budget_s=3.0)
+    env.close()
+    return steps / sec, steps / cpu
+
+
+def _is_valid_per_s(env_id: str, checks: int, seed: int) -> tuple[float, float, float]:
+    """``is_valid`` calls/s (wall, CPU) on uniform random arm configurations, and the fraction valid."""
+    import gymnasium as gym
+    import numpy as np
+
+    import lfd_envs  # noqa: F401  (registers the ids)
+
+    env = gym.make(env_id).unwrapped
+    env.reset(seed=seed)
+    lo, hi = env.joint_limits[:, 0], env.joint_limits[:, 1]
+    qs = np.random.default_rng(seed).uniform(lo, hi, (checks, len(lo)))
+    valid = [0]
+
+    def run() -> None:
+        valid[0] = sum(env.is_valid(q) for q in qs)
+
+    sec, cpu = _median_seconds(run, 5, budget_s=3.0)
+    env.close()
+    return checks / sec, checks / cpu, valid[0] / checks
+
+
+def mujoco_env_rows(device: str = "cpu", steps: int = 200, checks: int = 5000, seed: int = 0) -> list[dict[str, Any]]:
+    """Throughput of the MuJoCo obstructed-manipulation envs (tasks not yet available are skipped).
+
+    Per task: env steps/s with uniform random actions for ``obs_mode="state"`` and ``"image"``
+    (84×84, headless MuJoCo renderer), median over repeats of ``steps`` steps after a warm-up,
+    and ``is_valid`` collision checks/s on ``checks`` uniform random arm configurations
+    (targets: ≥ 300 state steps/s for the Sawyer tasks, ≥ 20,000 checks/s). ``*_cpu_*``
+    columns use the calling thread's CPU time (robust to other processes sharing the cores;
+    image rendering on software GL also uses other threads, so only wall time is given).
+    ``device`` is unused.
+    """
+    import os as _os
+
+    rows = []
+    for env_id in MUJOCO_BENCH_ENVS:
+        try:
+            state, state_cpu = _mujoco_steps_per_s(env_id, "state", steps, 5, seed)
+            image, _ = _mujoco_steps_per_s(env_id, "image", steps // 2, 3, seed)
+            checks_s, checks_cpu, frac = _is_valid_per_s(env_id, checks, seed)
+        except Exception as exc:  # a task not (yet) available must not stop the other rows
+            print(f"# mujoco: skipping {env_id}: {type(exc).__name__}: {exc}")
+            continue
+        rows.append({
+            "section": "mujoco", "env": env_id, "state_steps_per_s": round(state, 1),
+            "state_cpu_steps_per_s": round(state_cpu, 1), "image84_steps_per_s": round(image, 1),
+            "is_valid_per_s": round(checks_s, 0), "is_valid_cpu_per_s": round(checks_cpu, 0),
+            "random_q_valid_frac": round(frac, 3),
+            "gl": _os.environ.get("MUJOCO_GL", ""),
+        })
+    return rows
+
+
+# ---------------------------------------------------------------------------- particle engine
+def _particle_engine_sim(resolution: int, num_worlds: int, device: str, **params: Any):
+    """A 0.6 m cloth on the ground with one picker holding a corner (the benchmark scene).
+
+    Returns ``(sim, step)`` where ``step()`` advances one frame with the picker circling above
+    the cloth at SoftGym's maximum speed (0.01 m per frame and axis), so that the cloth keeps
+    moving, folds and exercises self-collision.
+    """
+    import numpy as np
+
+    from lfd_envs.sim import ParticleSim, SceneBuilder, SimParams
+
+    builders = []
+    for w in range(num_worlds):
+        b = SceneBuilder()
+        b.add_cloth(resolution, resolution, 0.6, 0.6, center=(0.0, 0.0, 0.01), yaw=0.1 * w)
+        builders.append(b)
+    sim = ParticleSim(builders, params=SimParams(**params), num_pickers=1, device=device)
+    corner = builders[0].cloths[0].corners[0]
+    start = sim.positions[:, corner][:, None, :].astype(np.float64)
+    sim.set_picker_positions(start)
+    state = {"k": 0, "pos": start.copy()}
+    grasp = np.ones((num_worlds, 1), bool)
+
+    def step() -> None:
+        k = state["k"]
+        state["k"] += 1
+        d = np.array([0.01 * np.cos(0.05 * k), 0.01 * np.sin(0.05 * k), 0.005 if k < 40 else 0.0])
+        state["pos"] = state["pos"] + d
+        sim.step(state["pos"], grasp)
+
+    for _ in range(30):  # lift the corner first: the measured frames see a moving, partly folded cloth
+        step()
+    return sim, step
+
+
+def particle_engine_rows(
+    device: str = "cpu",
+    resolutions: tuple[int, ...] = (20, 40, 80, 120),
+    worlds: tuple[int, ...] = (1, 4, 16, 64),
+    iterations: int = 10,
+    substeps: int = 4,
+    repeats: int = 20,
+) -> list[dict[str, Any]]:
+    """Substeps per second of :class:`lfd_envs.sim.ParticleSim` (one frame = ``substeps``).
+
+    Rows (``config`` column):
+
+    * ``resolution``: one world, ``iterations`` solver iterations, self-collision on and off,
+      cloth of ``n x n`` particles (targets: 40x40 >= 1000 substeps/s, 80x80 >= 250 substeps/s).
+    * ``batched``: ``W`` worlds of 40x40 stepped by the same launches; ``cost_vs_1_world`` is
+      the time per substep relative to one world (target for 16 worlds: <= 12).
+    * ``task-default``: ``SimParams()`` defaults (what the particle tasks use) at 40x40:
+      milliseconds per frame and env steps/s of the simulator alone (8 frames per env step).
+
+    ``substeps_per_s`` uses the median wall time; ``cpu_substeps_per_s`` the median CPU time of
+    the calling thread (robust to other processes sharing the cores).
+    """
+    rows: list[dict[str, Any]] = []
+
+    def row(config: str, n: int, w: int, sc: bool, its: int, sub: int, sec: float, cpu: float, **extra):
+        r = {
+            "section": "particle-engine", "config": config, "device": device, "cloth": f"{n}x{n}",
+            "worlds": w, "self_collision": sc, "iterations": its, "substeps": sub,
+            "ms_per_frame": round(sec * 1e3, 3),
+            "substeps_per_s": round(sub / sec, 1), "cpu_substeps_per_s": round(sub / cpu, 1),
+        }
+        r.update(extra)
+        rows.append(r)
+
+    for n in resolutions:
+        for sc in (True, False):
+            _, step = _particle_engine_sim(n, 1, device, iterations=iterations, substeps=substeps,
+                                           self_collision=sc)
+            sec, cpu = _median_seconds(step, repeats)
+            row("resolution", n, 1, sc, iterations, substeps, sec, cpu)
+    base = None
+    for w in worlds:
+        _, step = _particle_engine_sim(40, w, device, iterations=iterations, substeps=substeps)
+        sec, cpu = _median_seconds(step, repeats)
+        base = cpu if base is None else base
+        row("batched", 40, w, True, iterations, substeps, sec, cpu,
+            cost_vs_1_world=round(cpu / base, 2), world_substeps_per_s=round(w * substeps / cpu, 1))
+    from lfd_envs.sim import SimParams
+
+    p = SimParams()
+    _, step = _particle_engine_sim(40, 1, device)
+    sec, cpu = _median_seconds(step, repeats * 5)
+    row("task-default", 40, 1, p.self_collision, p.iterations, p.substeps, sec, cpu,
+        sim_env_steps_per_s=round(1.0 / (8 * sec), 1))
+    return rows
+
+
+# ---------------------------------------------------------------------------- Sawyer obstructed tasks
+SAWYER_ENV_IDS = ("SawyerPushObstacle-v0", "SawyerLiftObstacle-v0", "SawyerAssemblyObstacle-v0")
+
+
+def sawyer_env_rows(device: str = "cpu", steps: int = 150, image_steps: int = 40, valid_checks: int = 2000,
+                    repeats: int = 3, env_ids: tuple[str, ...] = SAWYER_ENV_IDS) -> list[dict[str, Any]]:
+    """Env steps/s of the Sawyer tasks (75 physics substeps per step), state and 84×84 image
+    observations, and ``is_valid`` collision checks/s.
+
+    Random actions from a seeded generator, resets included when an episode ends; configurations
+    for ``is_valid`` are the start pose + N(0, 0.5 rad) (typical planner queries, part of them in
+    collision). ``device`` is unused (MuJoCo runs on the CPU).
+    """
+    import gymnasium as gym
+    import numpy as np
+
+    import lfd_envs  # noqa: F401  (registers the ids)
+
+    rows = []
+    for env_id in env_ids:
+        for obs_mode, n in (("state", steps), ("image", image_steps)):
+            env = gym.make(env_id, obs_mode=obs_mode, image_size=84)
+            env.reset(seed=0)
+            actions = np.random.default_rng(0).uniform(-1, 1, (n, *env.action_space.shape)).astype(np.float32)
+
+            def run(env=env, actions=actions) -> None:
+                for a in actions:
+                    *_, term, trunc, _ = env.step(a)
+                    if term or trunc:
+                        env.reset()
+
+            sec, cpu = _median_seconds(run, repeats, budget_s=3.0)
+            row = {"section": "sawyer", "env": env_id, "obs": f"{obs_mode}" + (" 84x84" if obs_mode == "image" else ""),
+                   "env_steps_per_s": round(n / sec, 1), "cpu_env_steps_per_s": round(n / cpu, 1)}
+            if obs_mode == "state":
+                base = env.unwrapped
+                q0 = base.arm_qpos()
+                lo, hi = base.joint_limits.T
+                qs = np.clip(q0 + np.random.default_rng(1).normal(0, 0.5, (valid_checks, q0.size)), lo, hi)
+
+                def check(base=base, qs=qs) -> None:
+                    for q in qs:
+                        base.is_valid(q)
+
+                vsec, vcpu = _median_seconds(check, repeats, budget_s=2.0)
+                row["is_valid_per_s"] = round(valid_checks / vsec)
+                row["cpu_is_valid_per_s"] = round(valid_checks / vcpu)
+                row["valid_fraction"] = round(float(np.mean([base.is_valid(q) for q in qs[:200]])), 2)
+            rows.append(row)
+            env.close()
+    return rows
+
+
+# ---------------------------------------------------------------------------- DryCloth / ThreeBoxes
+def drycloth_threeboxes_rows(device: str = "cpu", repeats: int = 3,
+                             configs: tuple[tuple[str, str, int, str], ...] = (
+                                 ("DryCloth-v0", "pick_place", 1, "state"),
+                                 ("DryCloth-v0", "pick_place", 2, "state"),
+                                 ("DryCloth-v0", "pick_place", 1, "image"),
+                                 ("DryCloth-v0", "delta", 1, "state"),
+                                 ("ThreeBoxes-v0", "pick_place", 1, "state"),
+                                 ("ThreeBoxes-v0", "pick_place", 3, "image"),
+                                 ("ThreeBoxes-v0", "delta", 1, "state"),
+                             )) -> list[dict[str, Any]]:
+    """Env steps/s of DryCloth-v0 and ThreeBoxes-v0 at their default resolution (target:
+    DryCloth pick_place >= 5 env steps/s on the CPU; MAIL's FleX env ran 3.4 steps/s on a GPU).
+
+    Seeded random actions (the random pick-and-place policy for pick_place, uniform random
+    actions for delta), resets excluded; ``frames`` = engine frames per env step. Wall and
+    calling-thread CPU rates are both reported (the CPU rate is robust to shared cores).
+    """
+    import gymnasium as gym
+    import numpy as np
+
+    import lfd_envs  # noqa: F401  (registers the ids)
+    from lfd_envs.experts.random_pick_place import RandomPickPlacePolicy
+
+    rows = []
+    for env_id, mode, pickers, obs_mode in configs:
+        env = gym.make(env_id, action_mode=mode, num_pickers=pickers, obs_mode=obs_mode, device=device)
+        obs, _ = env.reset(seed=0)
+        policy = RandomPickPlacePolicy(env, seed=0) if mode == "pick_place" else None
+        rng = np.random.default_rng(0)
+        n = 3 if mode == "pick_place" else 24
+        actions = [rng.uniform(-1, 1, env.action_space.shape).astype(np.float32) for _ in range(n)]
+
+        def run(env=env, policy=policy, actions=actions) -> None:
+            env.reset(seed=0, options={"variant": 0})
+            if policy is not None:
+                policy.reset()
+            for a in actions:
+                env.step(a if policy is None else policy.predict(None)[0])
+
+        def reset_only(env=env) -> None:
+            env.reset(seed=0, options={"variant": 0})
+
+        sec, cpu = _median_seconds(run, repeats, budget_s=4.0)
+        rsec, rcpu = _median_seconds(reset_only, repeats, budget_s=0.5)
+        sec, cpu = max(sec - rsec, 1e-9), max(cpu - rcpu, 1e-9)
+        base = env.unwrapped
+        rows.append({"section": "drycloth_threeboxes", "env": env_id, "action_mode": mode, "pickers": pickers,
+                     "obs": obs_mode, "resolution": base.task.resolution, "particles": base.batch.sim.num_particles,
+                     "frames": base.batch.action_mode.frames_per_step, "device": device,
+                     "env_steps_per_s": round(n / sec, 2), "cpu_env_steps_per_s": round(n / cpu, 2)})
+        env.close()
+    return rows
+
+
+def particle_env_rows(device: str = "cpu", repeats: int = 3,
+                      env_ids: tuple[str, ...] = ("StraightenRope-v0", "ClothFold-v0", "ClothFoldDiagonalPinned-v0",
+                                                  "ClothFoldDiagonalUnpinned-v0"),
+                      action_modes: tuple[str, ...] = ("delta", "pick_place"),
+                      obs_modes: tuple[str, ...] = ("state", "image", "particles")) -> list[dict[str, Any]]:
+    """Env steps/s of the rope and cloth-fold tasks: every task x action mode x obs mode, one env,
+    default picker count and resolution, 32x32 images (targets: ClothFold delta/state >= 60,
+    delta/image >= 50, pick_place >= 5 env steps/s on this CPU).
+
+    Seeded uniform random actions, resets excluded; ``frames`` = engine frames per env step.
+    Wall and calling-thread CPU rates are both reported (the CPU rate is robust to shared cores).
+    """
+    import gymnasium as gym
+    import numpy as np
+
+    import lfd_envs  # noqa: F401  (registers the ids)
+
+    rows = []
+    for env_id in env_ids:
+        for mode in action_modes:
+            for obs_mode in obs_modes:
+                env = gym.make(env_id, action_mode=mode, obs_mode=obs_mode, device=device)
+                rng = np.random.default_rng(0)
+                n = 2 if mode == "pick_place" else 16
+                actions = [rng.uniform(-1, 1, env.action_space.shape).astype(np.float32) for _ in range(n)]
+                env.reset(seed=0, options={"variant": 0})
+
+                def run(env=env, actions=actions) -> None:
+                    env.reset(seed=0, options={"variant": 0})
+                    for a in actions:
+                        env.step(a)
+
+                def reset_only(env=env) -> None:
+                    env.reset(seed=0, options={"variant": 0})
+
+                sec, cpu = _median_seconds(run, repeats, budget_s=3.0)
+                rsec, rcpu = _median_seconds(reset_only, repeats, budget_s=0.3)
+                sec, cpu = max(sec - rsec, 1e-9), max(cpu - rcpu, 1e-9)
+                base = env.unwrapped
+                rows.append({"section": "particle_envs", "env": env_id, "action_mode": mode, "obs": obs_mode,
+                             "pickers": base.num_pickers, "resolution": base.task.resolution,
+                             "particles": base.batch.sim.num_particles,
+                             "frames": base.batch.action_mode.frames_per_step, "device": device,
+                             "env_steps_per_s": round(n / sec, 2), "cpu_env_steps_per_s": round(n / cpu, 2)})
+                env.close()
+    return rows
+
+
 # ---------------------------------------------------------------------------- main
 SECTIONS: dict[str, Callable[..., list[dict[str, Any]]]] = {
+    "particle_envs": particle_env_rows,
+    "particle_engine": particle_engine_rows,
     "render": render_rows,
+    "mujoco": mujoco_env_rows,
+    "mopa": mopa_rows,
+    "mopa_training": mopa_training_rows,
+    "sawyer": sawyer_env_rows,
+    "drycloth_threeboxes": drycloth_threeboxes_rows,
 }
 
 
 def print_table(rows: list[dict[str, Any]]) -> None:
-    """Print rows (dicts with the same keys) as an aligned text table."""
+    """Print rows (dicts) as an aligned markdown table."""
     if not rows:
         return
-    keys = list(rows[0])
+    keys: list[str] = []
+    for r in rows:  # union of keys, first-seen order (sections may add columns to some rows)
+        keys += [k for k in r if k not in keys]
     widths = {k: max(len(k), *(len(str(r.get(k, ""))) for r in rows)) for k in keys}
-    print("  ".join(k.ljust(widths[k]) for k in keys))
+    print("| " + " | ".join(k.ljust(widths[k]) for k in keys) + " |")
+    print("|" + "|".join("-" * (widths[k] + 2) for k in keys) + "|")
     for r in rows:
-        print("  ".join(str(r.get(k, "")).ljust(widths[k]) for k in keys))
+        print("| " + " | ".join(str(r.get(k, "")).ljust(widths[k]) for k in keys) + " |")
 
 
 def main(argv: list[str] | None = None) -> None:

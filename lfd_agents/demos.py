@@ -9,8 +9,9 @@ Every agent that takes ``demonstrations=`` accepts the same things (see :func:`l
   and optionally ``infos`` / ``states``.
 
 Per-step simulator states (for reference-state initialisation) are read from each episode's
-``infos["state"]`` (nested dicts are flattened with ``"/"``, so both ``{"sim/x": …}`` and
-``{"sim": {"x": …}}`` work); each entry is a dict for ``env.unwrapped.set_state``.
+``infos["state"]``: Minari episodes through ``lfd_envs.datasets.episode_states`` (which undoes
+that module's key encoding), dict episodes by flattening nested dicts with ``"/"``. Each entry
+is a dict for ``env.unwrapped.set_state`` (dtypes are matched to the env's at restore time).
 
 :func:`fill_replay_buffer` writes the transitions into an SB3 ``ReplayBuffer`` /
 ``DictReplayBuffer`` (optionally repeating a small set to fill it), converting observations to
@@ -109,10 +110,21 @@ def states_from_infos(infos: dict[str, Any] | None, key: str = "state") -> list[
     return [{k: v[t] for k, v in flat.items()} for t in range(n)]
 
 
+def _minari_states(ep: Any) -> list[dict[str, np.ndarray]] | None:
+    """States of a Minari episode written by ``lfd_envs.datasets`` (its own key encoding)."""
+    infos = getattr(ep, "infos", None)
+    if not infos or "state" not in infos:
+        return None
+    try:
+        from lfd_envs.datasets import episode_states
+    except ImportError:  # pragma: no cover - lfd_envs is a dependency
+        return states_from_infos(infos)
+    return episode_states(ep)
+
+
 def _from_episode_data(ep: Any) -> Episode:
     return Episode(observations=_as_obs(ep.observations), actions=ep.actions, rewards=ep.rewards,
-                   terminations=ep.terminations, truncations=ep.truncations,
-                   states=states_from_infos(getattr(ep, "infos", None)))
+                   terminations=ep.terminations, truncations=ep.truncations, states=_minari_states(ep))
 
 
 def _from_mapping(ep: dict[str, Any]) -> Episode:

@@ -261,7 +261,7 @@ class DMfD(OffPolicyAlgorithm):
                  batch_size: int = 256, tau: float = 0.005, gamma: float = 0.9,
                  train_freq: int | tuple[int, str] = 1, gradient_steps: int = 1, entropy_weight: float = 0.1,
                  ent_coef: float = 0.5, awr_temperature: float = 2.0, target_ent_coef: float = 0.0,
-                 reward_scale: float = 1.0, rsi_prob: float | str = "auto", imitation_reward_scale: float = 1.0,
+                 reward_scale: float = 10.0, rsi_prob: float | str = "auto", imitation_reward_scale: float = 1.0,
                  duplicate_demos: bool | int = False, augment: bool | str = "auto", aug_pad: int = 2,
                  offline_steps: int = 0, replay_buffer_class: Any = None,
                  replay_buffer_kwargs: dict[str, Any] | None = None, policy_kwargs: dict[str, Any] | None = None,

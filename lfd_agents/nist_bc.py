@@ -37,6 +37,7 @@ cameras), ``nist_bc_h6`` (history 6) and ``nist_bc_1cam`` (workspace camera only
 
 from __future__ import annotations
 
+import contextlib
 import zlib
 from collections import deque
 from pathlib import Path
@@ -51,6 +52,20 @@ from torch import nn
 from lfd_agents.augment import random_shift
 
 DEFAULT_CAMERAS = ("workspace", "wrist")
+
+
+@contextlib.contextmanager
+def _torch_threads(n: int | None):
+    """Run the block with ``n`` intra-op torch threads (restored afterwards); None = unchanged."""
+    if n is None:
+        yield
+        return
+    previous = th.get_num_threads()
+    th.set_num_threads(int(n))
+    try:
+        yield
+    finally:
+        th.set_num_threads(previous)
 
 
 # ---------------------------------------------------------------------- instruction features
@@ -188,6 +203,19 @@ def collect_demonstrations(env_kwargs: dict[str, Any], episodes: int, seed: int 
     return out
 
 
+def _image_array(frames: Any) -> np.ndarray:
+    """Frames as uint8 (T, H, W, 3); decodes the JPEG bytes Minari returns for images < 32 px."""
+    arr = np.asarray(frames)
+    if arr.dtype != object and arr.ndim == 4:
+        return arr
+    import io
+
+    from PIL import Image
+
+    return np.stack([np.asarray(Image.open(io.BytesIO(np.asarray(f, np.uint8).tobytes())).convert("RGB"))
+                     for f in frames])
+
+
 def _as_episodes(demonstrations: Any) -> list[dict[str, Any]]:
     """Normalise a list of episodes / a Minari dataset / a dataset folder to episode dicts."""
     if isinstance(demonstrations, (str, Path)):
@@ -201,7 +229,7 @@ def _as_episodes(demonstrations: Any) -> list[dict[str, Any]]:
             instr = obs["instruction"]
             instr = instr[0] if not isinstance(instr, str) else instr
             instr = instr.decode() if isinstance(instr, bytes) else str(instr)
-            cams = {k: np.asarray(v) for k, v in obs.items() if k in DEFAULT_CAMERAS}
+            cams = {k: _image_array(v) for k, v in obs.items() if k in DEFAULT_CAMERAS}
             episodes.append({"observations": {**cams, "instruction": instr}, "actions": np.asarray(ep.actions)})
         return episodes
     episodes = list(demonstrations)
@@ -228,6 +256,8 @@ class NistBC:
         expert_kwargs: passed to the expert (e.g. ``recovery_prob``).
         seed: seeds torch, the batch sampler and demonstration collection.
         device: torch device (CPU by default).
+        num_threads: torch threads while training/acting (1 by default: this small network is
+            fastest single-threaded, and multi-threading collapses on a busy CPU); None = torch's.
     """
 
     def __init__(self, env: gym.Env, demonstrations: Any = None, *, history: int = 2,
@@ -235,7 +265,7 @@ class NistBC:
                  train_tasks: Sequence[str] | None = None, batch_size: int = 32, learning_rate: float = 1e-3,
                  augment: bool = True, d_model: int = 64, n_layers: int = 2,
                  expert_kwargs: dict[str, Any] | None = None, seed: int = 0, device: str = "cpu",
-                 verbose: int = 0) -> None:
+                 num_threads: int | None = 1, verbose: int = 0) -> None:
         from lfd_envs.mujoco.nist import TRAIN_TASKS
 
         e = env.unwrapped
@@ -256,6 +286,7 @@ class NistBC:
             "instruction_buckets": 512,
         }
         self.device = th.device(device)
+        self.num_threads = num_threads
         self.verbose = int(verbose)
         th.manual_seed(int(seed))
         self.policy = RT1Policy(len(cams), int(history), e.num_bins, d_model=int(d_model), n_layers=int(n_layers),
@@ -340,6 +371,10 @@ class NistBC:
             total_timesteps: gradient steps (one mini-batch each) for this call.
             epochs: alternatively, passes over the demonstration transitions.
         """
+        with _torch_threads(self.num_threads):
+            return self._learn(total_timesteps, epochs)
+
+    def _learn(self, total_timesteps: int | None, epochs: float | None) -> "NistBC":
         if self._data is None:
             self._data = self._prepare_data()
         data = self._data
@@ -389,7 +424,7 @@ class NistBC:
         instr = instr[0] if not isinstance(instr, str) else instr
         ids, offsets = self._instruction_batch([instruction_ids(instr, self.config["instruction_buckets"])])
         self.policy.eval()
-        with th.no_grad():
+        with th.no_grad(), _torch_threads(self.num_threads):
             logits = self.policy(self._image_batch(per_camera, augment=False), ids, offsets)[0]
         if deterministic:
             bins = logits.argmax(-1)
@@ -401,7 +436,8 @@ class NistBC:
     def save(self, path: str | Path) -> None:
         """Save the network, optimiser and config (not the demonstrations)."""
         th.save({"config": self.config, "policy": self.policy.state_dict(),
-                 "optimizer": self.optimizer.state_dict(), "num_timesteps": self.num_timesteps}, str(path))
+                 "optimizer": self.optimizer.state_dict(), "num_timesteps": self.num_timesteps,
+                 "num_threads": self.num_threads}, str(path))
 
     @classmethod
     def load(cls, path: str | Path, env: gym.Env, demonstrations: Any = None, device: str = "cpu") -> "NistBC":
@@ -416,6 +452,7 @@ class NistBC:
                     train_tasks=cfg["train_tasks"], batch_size=cfg["batch_size"], learning_rate=cfg["learning_rate"],
                     augment=cfg["augment"], d_model=cfg["d_model"], n_layers=cfg["n_layers"],
                     expert_kwargs=cfg["expert_kwargs"], seed=cfg["seed"], device=device)
+        agent.num_threads = ckpt.get("num_threads", agent.num_threads)
         agent.policy.load_state_dict(ckpt["policy"])
         agent.optimizer.load_state_dict(ckpt["optimizer"])
         agent.num_timesteps = int(ckpt["num_timesteps"])

@@ -66,6 +66,7 @@ class ReferenceStateInit(gym.Wrapper):
         self.imitation_reward_scale = float(imitation_reward_scale)
         self._rng = np.random.default_rng(seed)
         self._refs: dict[int, np.ndarray] = {}
+        self._template: dict[str, tuple[np.dtype, tuple[int, ...]]] | None = None
         self._active: tuple[int, int] | None = None
 
     # ------------------------------------------------------------------ reference tracks
@@ -83,11 +84,23 @@ class ReferenceStateInit(gym.Wrapper):
         else:  # image-only demonstrations: read the reduced state off each restored state
             rows = []
             for state in ep.states:  # type: ignore[union-attr]
-                base.set_state(state)
+                base.set_state(self._typed(state))
                 rows.append(_reduced_state(self.env, base.current_observation()))
             ref = np.stack(rows)
         self._refs[j] = ref
         return ref
+
+    def _typed(self, state: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """Cast a stored state to the dtypes/shapes of the env's own ``get_state`` (datasets may
+        store bools as ints)."""
+        if self._template is None:
+            self._template = {k: (np.asarray(v).dtype, np.shape(v)) for k, v in self.env.unwrapped.get_state().items()}
+        out = {}
+        for key, value in state.items():
+            spec = self._template.get(key)
+            arr = np.asarray(value)
+            out[key] = arr.astype(spec[0], copy=False).reshape(spec[1]) if spec and arr.size == int(np.prod(spec[1])) else arr
+        return out
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -109,7 +122,7 @@ class ReferenceStateInit(gym.Wrapper):
         """Put the env into state ``step`` of demonstration ``episode``; returns (obs, info)."""
         self._reference(episode)  # may move the env; the restore below fixes that
         base = self.env.unwrapped
-        base.set_state(self.episodes[episode].states[step])  # type: ignore[index]
+        base.set_state(self._typed(self.episodes[episode].states[step]))  # type: ignore[index]
         self._active = (episode, step)
         return base.current_observation(), dict(base.current_info())
 

@@ -89,11 +89,18 @@ class RandomPolicy:
         return self.space.sample(), None
 
 
-POLICIES = {"expert": expert_policy, "random": RandomPolicy}
+def random_pick_place_policy(env: gym.Env) -> Any:
+    """Random pick-and-place moves for dynamics-model data (MAIL; :mod:`lfd_envs.experts.random_pick_place`)."""
+    from lfd_envs.experts.random_pick_place import random_pick_place_policy as factory
+
+    return factory(env)
+
+
+POLICIES = {"expert": expert_policy, "random": RandomPolicy, "random_pick_place": random_pick_place_policy}
 
 
 # ---------------------------------------------------------------------- collection
-class _EpisodeRecorder:
+class EpisodeRecorder:
     """Accumulates one episode in the layout Minari's ``EpisodeBuffer`` expects."""
 
     def __init__(self, episode_id: int, seed: int, options: dict[str, Any]):
@@ -135,10 +142,18 @@ def _stack_tree(items: list[Any]) -> Any:
     return np.stack([np.asarray(it) for it in items])
 
 
-def run_episode(env: gym.Env, policy: Any, seed: int, options: dict[str, Any], episode_id: int = 0) -> _EpisodeRecorder:
-    """Roll out ``policy`` for one episode and record everything."""
-    rec = _EpisodeRecorder(episode_id, seed, options)
+def run_episode(env: gym.Env, policy: Any, seed: int, options: dict[str, Any], episode_id: int = 0,
+                initial_state: dict[str, np.ndarray] | None = None) -> EpisodeRecorder:
+    """Roll out ``policy`` for one episode and record everything.
+
+    With ``initial_state`` the env is reset and then put into that state (e.g. a teacher's
+    start state for a student with another picker count), so the episode starts there.
+    """
+    rec = EpisodeRecorder(episode_id, seed, options)
     obs, info = env.reset(seed=seed, options=options)
+    if initial_state is not None:
+        env.unwrapped.set_state(initial_state)
+        obs, info = env.unwrapped.current_observation(), env.unwrapped.current_info()
     if hasattr(policy, "reset"):
         policy.reset()
     rec.add(obs, info, env)
@@ -232,11 +247,28 @@ def collect(
         final = float(rec.infos[-1]["normalized_performance"])
         if min_normalized_performance is not None and final < min_normalized_performance:
             continue
-        kept.append(rec.buffer())
+        kept.append(rec)
         bar.update(1)
     bar.close()
     if not kept:
         raise RuntimeError(f"no episode reached normalized performance {min_normalized_performance}")
+    env.close()
+    return write_dataset(kept, env, env_id, out_dir, name=name, env_kwargs=env_kwargs, seed=seed, split=split)
+
+
+def write_dataset(episodes: list[Any], env: gym.Env, env_id: str, out_dir: str | os.PathLike, *, name: str,
+                  env_kwargs: dict[str, Any] | None = None, seed: int = 0, split: str = "train",
+                  extra: dict[str, Any] | None = None) -> Path:
+    """Save recorded episodes (``EpisodeRecorder`` or Minari ``EpisodeBuffer``) as a Minari dataset."""
+    import minari
+
+    kept = []
+    for i, ep in enumerate(episodes):
+        if not isinstance(ep, EpisodeRecorder):
+            raise TypeError(f"episodes must be recorded with run_episode(), got {type(ep).__name__}")
+        ep.id = i
+        kept.append(ep.buffer())
+    env_kwargs = dict(env_kwargs or {})
     ds_id = dataset_id(env_id, name)
     with _datasets_root(out_dir):
         with contextlib.suppress(FileNotFoundError):
@@ -248,9 +280,8 @@ def collect(
                 dataset_id=ds_id, buffer=kept, env=env, eval_env=env, algorithm_name=f"lfd-{name}",
                 author="lfd", code_permalink="https://pypi.org/project/lfd/",
                 description=json.dumps({"env_id": env_id, "env_kwargs": env_kwargs, "policy": name,
-                                        "seed": seed, "split": split}),
+                                        "seed": seed, "split": split, **(extra or {})}),
             )
-    env.close()
     return Path(out_dir).resolve() / ds_id
 
 

@@ -259,7 +259,18 @@ def test_reuse_transitions_rewards_and_actions():
     assert buf.reuse_transitions({**traj, "qpos": qpos[:4], "rewards": rewards[:3]}) == []  # k ≤ 3
 
 
-def test_mopa_sac_and_td3_run_and_store_k_step_transitions():
+@pytest.fixture
+def one_torch_thread():
+    """Tiny networks: a single thread avoids oversubscription on a loaded 2-core machine."""
+    import torch
+
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)
+
+
+def test_mopa_sac_and_td3_run_and_store_k_step_transitions(one_torch_thread):
     env = MoPAWrapper(WallPointEnv(horizon=60), dq_mp=1.0, omega=0.5, range=0.2, time_limit=0.2)
     model = MoPASAC("MlpPolicy", env, reward_scale=0.2, reuse=5, gamma=0.95, learning_starts=50, batch_size=32,
                     policy_kwargs={"net_arch": [32, 32]}, seed=0, device="cpu")
@@ -361,3 +372,20 @@ def test_planner_increases_exploration_coverage_push2d(push2d):
     plain = _coverage(push2d, n, 0, tip)
     mopa = _coverage(make_mopa_env(push2d.unwrapped, time_limit=0.2), n, 0, tip)
     assert mopa > 1.3 * plain, (mopa, plain)  # measured ≈ 1.7×
+
+
+def test_benchmark_adapter_counts_low_level_steps_and_acts_on_plain_env(push2d, one_torch_thread):
+    agent = MoPASAC.for_benchmark(gym.make("Push2DObstacle-v0"), seed=0, learning_starts=10_000,
+                                  wrapper_kwargs={"time_limit": 0.2})
+    agent.learn(60)
+    assert 60 <= agent.train_env.low_level_steps < 60 + 400  # stops after the action crossing the budget
+    env = gym.make("Push2DObstacle-v0")
+    agent.bind(env)
+    obs, _ = env.reset(seed=1)
+    agent.reset()
+    for _ in range(30):
+        action, _ = agent.predict(obs)
+        assert env.action_space.contains(action)
+        obs, _, term, trunc, _ = env.step(action)
+        if term or trunc:
+            break

@@ -217,6 +217,13 @@ class MoPASAC(SAC):
         super().set_env(env, force_reset)
         _sync_gamma(self)
 
+    @classmethod
+    def for_benchmark(cls, env: gym.Env, seed: int = 0, **kwargs: Any):
+        """Harness adapter: :class:`~lfd_agents.mopa.agent.MoPAAgent` (budget in low-level steps)."""
+        from lfd_agents.mopa.agent import MoPAAgent
+
+        return MoPAAgent(env, seed=seed, algo="sac", **kwargs)
+
 
 class MoPATD3(TD3):
     """TD3 counterpart of :class:`MoPASAC` (ablation "TD3 instead of SAC")."""
@@ -229,3 +236,10 @@ class MoPATD3(TD3):
     def set_env(self, env, force_reset: bool = True) -> None:
         super().set_env(env, force_reset)
         _sync_gamma(self)
+
+    @classmethod
+    def for_benchmark(cls, env: gym.Env, seed: int = 0, **kwargs: Any):
+        """Harness adapter: :class:`~lfd_agents.mopa.agent.MoPAAgent` (budget in low-level steps)."""
+        from lfd_agents.mopa.agent import MoPAAgent
+
+        return MoPAAgent(env, seed=seed, algo="td3", **kwargs)

@@ -38,7 +38,7 @@ from gymnasium import spaces
 
 from lfd_agents.mopa.planner import OMPLPlanner
 
-__all__ = ["ActionMap", "MoPAWrapper", "rescale_action", "invert_rescale", "PLANNING_INTERFACE"]
+__all__ = ["ActionMap", "MoPAPlan", "MoPAWrapper", "rescale_action", "invert_rescale", "PLANNING_INTERFACE"]
 
 #: attributes an env must expose to be wrapped
 PLANNING_INTERFACE = ("arm_joint_names", "joint_limits", "arm_qpos", "is_valid", "dq_step", "execute_path")
@@ -95,6 +95,23 @@ class ActionMap:
     def is_direct(self, dq: np.ndarray) -> bool:
         """True when one low-level step can execute ``dq`` (no joint beyond Δq_step)."""
         return bool(np.max(np.abs(dq)) <= self.dq_step * (1 + 1e-9))
+
+
+@dataclass
+class MoPAPlan:
+    """How one MoPA action will be carried out (see :meth:`MoPAWrapper.resolve`).
+
+    ``mode``: "direct", "interpolation", "planner", "failed" or "invalid_target"; ``path``:
+    ``(k, d)`` waypoints after ``start`` (None for direct actions and failures).
+    """
+
+    mode: str
+    dq: np.ndarray
+    extra: np.ndarray
+    start: np.ndarray
+    path: np.ndarray | None = None
+    planning_time: float = 0.0
+    used_planner: bool = False
 
 
 @dataclass
@@ -179,6 +196,8 @@ class MoPAWrapper(gym.Wrapper):
             planner = OMPLPlanner(base.is_valid, np.asarray(base.joint_limits), **kw)
         self.planner = planner
         self._obs: Any = None
+        #: low-level env steps executed since construction (MoPA budgets count these)
+        self.low_level_steps = 0
         self.stats = {"direct": 0, "interpolation": 0, "planner": 0, "failed": 0, "invalid_target": 0}
 
     # ------------------------------------------------------------------ gymnasium API
@@ -190,35 +209,63 @@ class MoPAWrapper(gym.Wrapper):
     def step(self, action):
         if self._obs is None:
             raise RuntimeError("call reset() before step()")
+        u = self._check_action(action)
+        plan = self.resolve(u)
+        if plan.mode == "direct":
+            ex = self._direct(plan.dq, plan.extra)
+        elif plan.path is None:
+            ex = self._hold(plan.extra)
+        else:
+            ex = self._execute(plan.path, plan.extra, plan.start)
+        path = None if plan.path is None else plan.path[: len(ex.rewards)]
+        return self._finish(u, ex, plan.mode, path, plan.planning_time, plan.used_planner)
+
+    def _check_action(self, action) -> np.ndarray:
         u = np.asarray(action, dtype=np.float64).reshape(-1)
         if u.shape != self.action_space.shape or not np.all(np.isfinite(u)):
             raise ValueError(f"action must be a finite array of shape {self.action_space.shape}, got {action!r}")
-        u = np.clip(u, -1.0, 1.0)
+        return np.clip(u, -1.0, 1.0)
+
+    def resolve(self, action) -> MoPAPlan:
+        """Decide how to carry out MoPA ``action`` from the current state, without moving.
+
+        Returns a :class:`MoPAPlan`: a direct step, a planned path (waypoints ≤ Δq_step apart,
+        start excluded), or a failure (``path`` None: the arm holds still for one step).
+        Used by :meth:`step` and by agents acting on an unwrapped env (one waypoint a step).
+        """
+        u = self._check_action(action)
         dq = self.action_map.displacement(u[: self.n_arm])
         extra = u[self.n_arm:]
+        q0 = self.planner.clip(self.arm_qpos())
         if self.direct_execution and self.action_map.is_direct(dq):
-            ex, mode, path, timing, used = self._direct(dq, extra), "direct", None, 0.0, False
-        else:
-            ex, mode, path, timing, used = self._planned(dq, extra)
-        return self._finish(u, ex, mode, path, timing, used)
+            return MoPAPlan("direct", dq, extra, q0)
+        target = self.valid_target(q0, self.planner.clip(q0 + dq))
+        if target is None:
+            return MoPAPlan("invalid_target", dq, extra, q0)
+        result = self.planner.plan(q0, target)
+        if not result.success:
+            return MoPAPlan("failed", dq, extra, q0, None, result.planning_time, result.used_planner)
+        return MoPAPlan(result.status, dq, extra, q0, result.path, result.planning_time, result.used_planner)
 
-    # ------------------------------------------------------------------ action kinds
+    def low_level_actions(self, plan: MoPAPlan) -> list[np.ndarray]:
+        """Env actions carrying out ``plan`` with plain ``env.step`` calls (one per waypoint)."""
+        if plan.mode == "direct":
+            return [np.concatenate([plan.dq / self.env_dq_step, plan.extra]).astype(np.float32)]
+        if plan.path is None:
+            return [np.zeros(self.env.action_space.shape, np.float32)]
+        steps = np.diff(np.vstack([plan.start[None], plan.path]), axis=0) / self.env_dq_step
+        out = []
+        for i, arm in enumerate(np.clip(steps, -1.0, 1.0)):
+            extra = plan.extra if i == len(steps) - 1 else np.zeros_like(plan.extra)
+            out.append(np.concatenate([arm, extra]).astype(np.float32))
+        return out
+
+    # ------------------------------------------------------------------ execution
     def _direct(self, dq: np.ndarray, extra: np.ndarray) -> _Execution:
         q0 = self.arm_qpos()
         env_action = np.concatenate([dq / self.env_dq_step, extra]).astype(np.float32)
         obs, r, term, trunc, info = self.env.step(env_action)
         return _Execution(obs, [float(r)], bool(term), bool(trunc), info, [self._obs, obs], [q0, self.arm_qpos()])
-
-    def _planned(self, dq: np.ndarray, extra: np.ndarray):
-        q0 = self.planner.clip(self.arm_qpos())
-        target = self.valid_target(q0, self.planner.clip(q0 + dq))
-        if target is None:
-            return self._hold(extra), "invalid_target", None, 0.0, False
-        result = self.planner.plan(q0, target)
-        if not result.success:
-            return self._hold(extra), "failed", None, result.planning_time, result.used_planner
-        ex = self._execute(result.path, extra, q0)
-        return ex, result.status, result.path[: len(ex.rewards)], result.planning_time, result.used_planner
 
     def valid_target(self, q: np.ndarray, target: np.ndarray) -> np.ndarray | None:
         """Pull ``target`` toward ``q`` until valid (None when it stays in collision)."""
@@ -277,6 +324,7 @@ class MoPAWrapper(gym.Wrapper):
                 "terminated": ex.terminated, "extra_action": u[self.n_arm:].copy(), "action_map": self.action_map,
             }
         self._obs = ex.obs
+        self.low_level_steps += k
         return ex.obs, reward, ex.terminated, ex.truncated, info
 
     # ------------------------------------------------------------------ helpers

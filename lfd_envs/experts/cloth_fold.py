@@ -17,6 +17,8 @@ class ClothFoldExpert(FoldExpert):
     """Expert of :class:`~lfd_envs.tasks.cloth_fold.ClothFoldEnv` (see module docstring)."""
 
     single_picker_pairs = 3
+    place_shift = -0.06
+    clearance = 0.0
 
     def single_picker_order(self, count: int) -> list[int]:
         return [0, count - 1] + list(range(1, count - 1))

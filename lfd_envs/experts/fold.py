@@ -20,8 +20,11 @@ class FoldExpert(PickerExpert):
 
     #: pairs folded one at a time when there are fewer pickers than ``min_pickers_for_one_move``
     single_picker_pairs: int = 1
-    #: place points are moved this far (m) beyond the partner, away from the pick point
-    overshoot: float = 0.0
+    #: place points are moved this far (m) along the pick->place direction; negative = short of
+    #: the partner, which compensates the slide of the released edge (cloth layers slide freely)
+    place_shift: float = 0.0
+    #: height (m) above its partner at which a held particle is released
+    clearance: float = 0.02
 
     def plan(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """``(pick_indices (P,), place_indices (P,))`` of each move."""
@@ -46,21 +49,27 @@ class FoldExpert(PickerExpert):
 
     def retarget(self, move: Move) -> Move:
         picks = move.info["picks"]
-        return self._make_move(picks, move.info["places"], move.pick[:len(picks)])
+        return self._make_move(picks, move.info["places"], move.pick[:len(picks)], move.info["hang"])
 
-    def _make_move(self, picks: np.ndarray, places: np.ndarray, pick: np.ndarray | None = None) -> Move:
+    def _make_move(self, picks: np.ndarray, places: np.ndarray, pick: np.ndarray | None = None,
+                   hang: np.ndarray | None = None) -> Move:
         pos = self.positions
         if pick is None:
             pick = pos[picks].copy()
             pick[:, 2] = 0.0  # descend as low as the picker can go
+        if hang is None:
+            # the held particle will hang below the picker centre by its gap at the grasp; it is
+            # lowered onto its partner with ``clearance`` (pressing it into the lower layer makes
+            # it pop on release)
+            hang = self.workspace.clip(pick)[:, 2] - pos[picks, 2]
         place = pos[places].copy()
-        if self.overshoot:
+        if self.place_shift:
             d = place[:, :2] - pick[:, :2]
-            place[:, :2] += self.overshoot * d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
-        place[:, 2] = 0.0
+            place[:, :2] += self.place_shift * d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
+        place[:, 2] += hang + self.clearance
         p = self.num_pickers
         active = np.zeros(p, dtype=bool)
         active[:len(picks)] = True
         full_pick, full_place = self.pickers.copy(), self.pickers.copy()
         full_pick[:len(picks)], full_place[:len(picks)] = pick, place
-        return Move(full_pick, full_place, active, info={"picks": picks, "places": places})
+        return Move(full_pick, full_place, active, info={"picks": picks, "places": places, "hang": hang})

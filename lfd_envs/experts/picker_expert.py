@@ -26,9 +26,9 @@ from lfd_envs.tasks.picker_actions import arc_length, carry_point
 
 __all__ = ["Move", "PickerExpert"]
 
-PHASES = ("approach", "descend", "grasp", "lift", "carry", "lower", "release", "retreat")
+PHASES = ("approach", "descend", "grasp", "lift", "carry", "lower", "hold", "release", "retreat")
 ONE_SHOT = {"grasp", "release"}
-HOLDING = {"grasp", "lift", "carry", "lower"}
+HOLDING = {"grasp", "lift", "carry", "lower", "hold"}
 
 
 @dataclass
@@ -63,6 +63,10 @@ class PickerExpert:
         tolerance: Distance (m) at which a delta-mode waypoint counts as reached.
         max_phase_steps: Steps after which a delta-mode phase is abandoned (never stalls).
     """
+
+    #: delta mode: keep re-aiming the place point at the live target while carrying (else the
+    #: move is fixed once the picker leaves the approach phase)
+    track_place: bool = False
 
     def __init__(self, env: Any, hold_speed: float = 0.6, tolerance: float = 1e-3, max_phase_steps: int = 80) -> None:
         base = env.unwrapped
@@ -161,6 +165,10 @@ class PickerExpert:
         out[move.active] = ws.clip(target)[move.active]
         return out
 
+    def _hold_steps(self) -> int:
+        frames = self.schedule.hold_frames
+        return -(-frames // self.actions.action_repeat) if frames > 0 else 0
+
     def _delta_action(self) -> np.ndarray:
         p = self.num_pickers
         cur = self.pickers
@@ -173,7 +181,7 @@ class PickerExpert:
                 if self._move is None:
                     return action.ravel()
             name = PHASES[self._phase]
-            if name == "approach":
+            if name == "approach" or (self.track_place and name in ("lift", "carry")):
                 self._move = self.retarget(self._move)
             move = self._move
             if name != "carry":
@@ -184,7 +192,10 @@ class PickerExpert:
                 gap = np.abs(self._target("carry_end", move, cur) - cur).max() if self._carry_alpha >= 1.0 else 1.0
                 if gap >= self.tolerance:
                     target = self._target(name, move, cur)
-            done = (self._issued if name in ONE_SHOT else gap < self.tolerance) or self._phase_steps >= self.max_phase_steps
+            if name == "hold":  # keep still, holding, for the schedule's hold time (in env steps)
+                done = self._phase_steps >= self._hold_steps()
+            else:
+                done = (self._issued if name in ONE_SHOT else gap < self.tolerance) or self._phase_steps >= self.max_phase_steps
             if not done:
                 break
             self._phase += 1

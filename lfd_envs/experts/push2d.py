@@ -4,14 +4,17 @@ Uses only the env's planning interface (``is_valid``, ``colliding_pairs``, ``joi
 ``arm_qpos``, ``dq_step``) plus the box/goal/fingertip positions:
 
 1. **Choose a pushing pose.** The box must travel along ``u = (goal - box)/|goal - box|``.
-   For gripper headings ``h`` within ±60° of ``u`` (the box is carried in the U-shaped gripper
+   For gripper headings ``h`` within ±70° of ``u`` (the box is carried in the U-shaped gripper
    even when the heading and the push direction differ) and many elbow configurations
-   (analytic IK of the planar arm), keep candidates whose pre-contact pose (fingertip 6 cm
+   (analytic IK of the planar arm), keep candidates whose pre-contact pose (fingertip 5.5 cm
    behind the box along ``h``) is valid and whose approach and push (fingertip moved along
    ``h`` to the box, then along ``u`` until the box would be at the goal) only touch the box.
-   Prefer small heading deviations, then short joint distances.
-2. **Plan** a collision-free joint path to the pre-contact pose
-   (:func:`~lfd_envs.mujoco.planning.plan_path`) and follow it waypoint by waypoint.
+   Prefer small heading deviations, then poses reachable in a straight line from the
+   staging pose (below), then short joint distances.
+2. **Plan** a collision-free joint path to the pre-contact pose and follow it waypoint by
+   waypoint: a fixed route (planned once with :func:`~lfd_envs.mujoco.planning.plan_path`)
+   swings the arm clockwise to a staging pose pointing up the free corridor, then
+   ``plan_path`` (usually a straight line) reaches the episode's pre-contact pose.
 3. **Approach and push** with damped-least-squares differential IK on the fingertip
    position and heading, at most 1.5 cm per step, re-aiming at the goal every step.
 
@@ -28,8 +31,29 @@ from lfd_envs.mujoco.planning import plan_path
 
 LINKS = np.array([0.1, 0.1, 0.1, 0.11])  # last: joint3 -> fingertip site
 CONTACT = 0.02  # box centre ahead of the fingertip when it touches the cross bar
-PRE_CONTACT = 0.06  # fingertip this far behind the box before the approach
+PRE_CONTACT = 0.055  # fingertip this far behind the box before the approach
 MAX_MOVE = 0.015  # fingertip displacement per step (m)
+#: heading deviations from the push direction tried, in order (degrees)
+DEVIATIONS = (0, 10, -10, 20, -20, 30, -30, 40, -40, 50, -50, 60, -60, 70, -70)
+#: via configurations from the start pose (arm along +x) to the staging pose (arm reaching up the
+#: free corridor between obstacles 1 and 5, gripper pointing at the box region): the arm swings
+#: clockwise, since obstacle 1 blocks the counter-clockwise way
+VIA = (np.zeros(4), np.array([-np.pi / 2, 0.0, 0.0, 0.0]), np.array([-np.pi, -np.pi / 2, 0.0, 0.0]),
+       np.array([-3.665, -0.716, -0.68, 2.289]))
+_ROUTE_CACHE: dict[str, np.ndarray] = {}
+
+
+def staging_route(env: Any) -> np.ndarray:
+    """Collision-free joint path through :data:`VIA` (planned once per process, seeded)."""
+    if "route" not in _ROUTE_CACHE:
+        pieces = [VIA[0][None]]
+        for a, b in zip(VIA[:-1], VIA[1:]):
+            piece = plan_path(env, b, q_start=a, rng=np.random.default_rng(0), max_iters=20000)
+            if piece is None:
+                raise RuntimeError("Push2DExpert: no path to the staging pose; the scene geometry changed?")
+            pieces.append(piece[1:])
+        _ROUTE_CACHE["route"] = np.vstack(pieces)
+    return _ROUTE_CACHE["route"]
 
 
 def forward_kinematics(q: np.ndarray) -> tuple[np.ndarray, float]:
@@ -128,18 +152,19 @@ class Push2DExpert:
 
     def _pre_contact_pose(self) -> tuple[np.ndarray, float] | None:
         env = self.env
-        box, goal, q_now = env.box_xy(), env.goal, env.arm_qpos()
+        box, goal, q_now = env.box_xy(), env.goal, VIA[-1]
         u = goal - box
         u /= max(np.linalg.norm(u), 1e-9)
         base = float(np.arctan2(u[1], u[0]))
-        for deviation in np.deg2rad([0, 10, -10, 20, -20, 30, -30, 40, -40, 50, -50, 60, -60]):
+        for deviation in np.deg2rad(DEVIATIONS):
             heading = base + deviation
             h = np.array([np.cos(heading), np.sin(heading)])
             candidates = inverse_kinematics(box - PRE_CONTACT * h, heading, q_now[0])
             candidates.sort(key=lambda c: float(np.abs(c - q_now).sum()))
-            for q in candidates:
-                if env.is_valid(q) and self._push_is_free(q, heading, u, box, goal):
-                    return q, heading
+            good = [q for q in candidates if env.is_valid(q) and self._push_is_free(q, heading, u, box, goal)]
+            if good:  # prefer a pose reachable in a straight line from the staging pose
+                straight = [q for q in good if env.is_segment_valid(q_now, q)]
+                return (straight or good)[0], heading
         return None
 
     # ------------------------------------------------------------------ acting
@@ -148,9 +173,10 @@ class Push2DExpert:
         if choice is None:
             return False
         q_pre, self._heading = choice
-        path = plan_path(self.env, q_pre, rng=self._rng, max_iters=3000)
-        if path is None:
+        tail = plan_path(self.env, q_pre, q_start=VIA[-1], rng=self._rng, max_iters=3000)
+        if tail is None:
             return False
+        path = np.vstack([staging_route(self.env), tail[1:]])
         self._path, self._waypoint, self._phase = path, 1, "follow"
         return True
 

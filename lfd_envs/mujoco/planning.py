@@ -85,50 +85,70 @@ def densify_path(path: np.ndarray, max_step: float) -> np.ndarray:
 
 def _segment_free(env: "PlanningMixin", a: np.ndarray, b: np.ndarray, resolution: float) -> bool:
     """Every interpolated configuration after ``a`` up to ``b`` is valid (``a`` itself is not checked)."""
-    return all(env.is_valid(q) for q in interpolate(a, b, resolution)[1:])
+    check = env._is_valid_unchecked
+    return all(check(q) for q in interpolate(a, b, resolution)[1:])
+
+
+class _Tree:
+    """Nodes (growing array) and parent indices of one RRT tree."""
+
+    def __init__(self, root: np.ndarray, capacity: int) -> None:
+        self.nodes = np.empty((capacity + 1, len(root)))
+        self.nodes[0] = root
+        self.parents = np.full(capacity + 1, -1)
+        self.size = 1
+
+    def nearest(self, q: np.ndarray) -> tuple[int, float]:
+        d = np.linalg.norm(self.nodes[: self.size] - q, axis=1)
+        i = int(np.argmin(d))
+        return i, float(d[i])
+
+    def add(self, q: np.ndarray, parent: int) -> int:
+        if self.size == len(self.nodes):
+            self.nodes = np.vstack([self.nodes, np.empty_like(self.nodes)])
+            self.parents = np.concatenate([self.parents, np.full(len(self.parents), -1)])
+        self.nodes[self.size], self.parents[self.size] = q, parent
+        self.size += 1
+        return self.size - 1
+
+    def branch(self, i: int) -> list[np.ndarray]:
+        """Nodes from ``i`` back to the root."""
+        out = []
+        while i >= 0:
+            out.append(self.nodes[i].copy())
+            i = int(self.parents[i])
+        return out
 
 
 def _rrt_connect(env: "PlanningMixin", q_start: np.ndarray, q_goal: np.ndarray, rng: np.random.Generator,
                  max_iters: int, step: float, resolution: float) -> list[np.ndarray] | None:
     """Bidirectional RRT (RRT-Connect, L2 metric) in the box ``env.joint_limits``."""
     lo, hi = env.joint_limits[:, 0], env.joint_limits[:, 1]
-    trees = [([q_start], [-1]), ([q_goal], [-1])]  # (nodes, parent indices)
+    trees = [_Tree(q_start, 1024), _Tree(q_goal, 1024)]
 
-    def extend(tree, target: np.ndarray) -> tuple[int, bool]:
+    def extend(tree: _Tree, target: np.ndarray) -> tuple[int, bool]:
         """Grow ``tree`` towards ``target`` by at most ``step``; (new index or -1, reached)."""
-        nodes, parents = tree
-        dists = np.linalg.norm(np.asarray(nodes) - target, axis=1)
-        i = int(np.argmin(dists))
-        reached = dists[i] <= step
-        new = target if reached else nodes[i] + (target - nodes[i]) * (step / dists[i])
-        if not _segment_free(env, nodes[i], new, resolution):
+        i, dist = tree.nearest(target)
+        reached = dist <= step
+        near = tree.nodes[i]
+        new = target if reached else near + (target - near) * (step / dist)
+        if not _segment_free(env, near, new, resolution):
             return -1, False
-        nodes.append(new)
-        parents.append(i)
-        return len(nodes) - 1, reached
-
-    def branch(tree, i: int) -> list[np.ndarray]:
-        nodes, parents = tree
-        out = []
-        while i >= 0:
-            out.append(nodes[i])
-            i = parents[i]
-        return out
+        return tree.add(new, i), reached
 
     for it in range(max_iters):
         grow, other = trees[it % 2], trees[(it + 1) % 2]
         i, _ = extend(grow, rng.uniform(lo, hi))
         if i < 0:
             continue
-        target = grow[0][i]
+        target = grow.nodes[i].copy()
         while True:  # connect: grow the other tree towards the new node until blocked or joined
             j, reached = extend(other, target)
             if j < 0:
                 break
             if reached:
-                a, b = branch(grow, i), branch(other, j)
-                path = a[::-1] + b[1:] if it % 2 == 0 else b[::-1] + a[1:]
-                return path
+                a, b = grow.branch(i), other.branch(j)
+                return a[::-1] + b[1:] if it % 2 == 0 else b[::-1] + a[1:]
     return None
 
 
@@ -273,13 +293,17 @@ class PlanningMixin:
 
     def _check_q(self, q: Any) -> np.ndarray:
         arr = np.asarray(q, np.float64)
-        if arr.shape != (self.n_arm,) or not np.all(np.isfinite(arr)):
+        if arr.shape != (self.n_arm,) or not np.isfinite(arr).all():
             raise ValueError(f"q must be a finite array of shape ({self.n_arm},), got {arr!r}")
         return arr
 
     def is_valid(self, q: Any) -> bool:
         """True if arm configuration ``q`` ``(d,)`` is collision-free (module docstring)."""
-        pd = self._load_plan_data(self._check_q(q))
+        return self._is_valid_unchecked(self._check_q(q))
+
+    def _is_valid_unchecked(self, q: np.ndarray) -> bool:
+        """:meth:`is_valid` for a known-good float64 array (planner inner loops)."""
+        pd = self._load_plan_data(q)
         if pd.ncon == 0:
             return True
         contact = pd.contact

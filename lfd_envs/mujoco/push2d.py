@@ -28,7 +28,10 @@ Performance p = −max(d_g − 0.05, 0), p_opt = 0, so p̂ = 1 exactly at succes
 Planning: ``is_valid`` counts contacts penetrating ≥ 2 mm; no pairs are ignored (the arm
 touching the box counts as a collision, so plan to poses that do not touch it).
 Goal-conditioned variant (``goal_conditioned=True``): achieved goal = box xy, desired goal =
-goal xy; ``compute_reward`` reproduces the step reward using ``info["reach_reward"]``.
+goal xy; the reward is B.1 **without the reach term** (``0.3·(1 − tanh 5 d_g)`` if
+``d_g ≤ 0.1``, +150 on success), because a term that does not depend on the goal cannot be
+recomputed by HER from goals alone (SB3's ``HerReplayBuffer`` passes empty infos by default).
+``info["reach_reward"]`` still reports the reach term.
 """
 
 from __future__ import annotations
@@ -70,12 +73,12 @@ def _scene_xml() -> str:
   <default>
     <joint type="hinge" axis="0 0 1" armature="1" damping="1" limited="true" range="-3.0 3.0"/>
     <geom contype="1" conaffinity="1" friction="1 0.005 0.0001" condim="3"/>
-    <default class="obstacle"><geom type="box" contype="1" conaffinity="0" rgba="0.55 0.55 0.6 1"/></default>
+    <default class="obstacle"><geom type="box" contype="1" conaffinity="0" rgba="0.85 0.85 0.9 1"/></default>
   </default>
   <worldbody>
     <light pos="0 0 2" dir="0 0 -1" directional="true"/>
-    <geom name="floor" type="plane" size="0.6 0.6 0.01" pos="0 0 -0.04" rgba="0.9 0.9 0.9 1" contype="0" conaffinity="0"/>
-    <camera name="topdown" pos="-0.05 0 1.05" xyaxes="1 0 0 0 1 0" fovy="50"/>
+    <geom name="floor" type="plane" size="0.6 0.6 0.01" pos="0 0 -0.04" rgba="0.35 0.35 0.38 1" contype="0" conaffinity="0"/>
+    <camera name="topdown" pos="0.03 -0.1 1.0" xyaxes="1 0 0 0 1 0" fovy="48"/>
 {obstacles}
     <geom name="root" type="cylinder" pos="0 0 0.02" size="0.011 0.01" contype="0" conaffinity="0" rgba="0.1 0.1 0.1 1"/>
     <body name="body0" pos="0 0 0.02">
@@ -133,7 +136,6 @@ class Push2DObstacleEnv(PlanningMixin, MujocoEnv):
     task_name = "Push2DObstacle"
     camera: ClassVar[str] = "topdown"
     goal_dim: ClassVar[int] = 2
-    reward_info_keys: ClassVar[tuple[str, ...]] = ("reach_reward",)
     ignored_contact_pairs: ClassVar[list[tuple[str, str]]] = []
 
     def __init__(self, obs_mode: str = "state", image_size: int | tuple[int, int] = 84,
@@ -204,16 +206,16 @@ class Push2DObstacleEnv(PlanningMixin, MujocoEnv):
         return {"reach_reward": self._reach_reward()}
 
     def _goal_reward(self, achieved: np.ndarray, desired: np.ndarray, extras: dict[str, np.ndarray]) -> np.ndarray:
+        """Goal terms of B.1: push shaping within 0.1 m and the success bonus."""
         d_g = np.linalg.norm(achieved - desired, axis=-1)
         push = np.where(d_g <= 0.1, 0.3 * (1.0 - np.tanh(5.0 * d_g)), 0.0)
-        return extras["reach_reward"] + push + 150.0 * (d_g <= SUCCESS_DISTANCE)
+        return push + 150.0 * (d_g <= SUCCESS_DISTANCE)
 
     def _goal_success(self, achieved: np.ndarray, desired: np.ndarray) -> np.ndarray:
         return np.linalg.norm(achieved - desired, axis=-1) <= SUCCESS_DISTANCE
 
     def _task_reward(self) -> float:
-        extras = {"reach_reward": np.array([self._reach_reward()])}
-        return float(self._goal_reward(self.box_xy()[None], self._goal[None], extras)[0])
+        return self._reach_reward() + float(self._goal_reward(self.box_xy()[None], self._goal[None], {})[0])
 
     def _achieved_goal(self) -> np.ndarray:
         return self.box_xy()

@@ -9,8 +9,9 @@ MuJoCo picks its OpenGL backend once, when ``mujoco`` is first imported, from th
 2. else ``osmesa`` if the OSMesa library is installed (software rendering),
 3. else ``egl`` anyway, so that :func:`make_renderer` raises a clear ``RuntimeError``.
 
-A user-set ``MUJOCO_GL`` is always respected. Because the backend is fixed at import,
-the fallback is decided by probing, not by retrying after a failure.
+A user-set ``MUJOCO_GL`` is always respected. The backend is fixed when ``mujoco`` is imported
+(switching afterwards fails inside MuJoCo's GL loader), so the fallback is decided by probing,
+and :func:`make_renderer` turns a failure into a ``RuntimeError`` that says what to do.
 """
 
 from __future__ import annotations
@@ -69,7 +70,7 @@ def configure_gl_backend() -> str:
 def make_renderer(model: Any, height: int, width: int) -> Any:
     """A ``mujoco.Renderer`` of ``height`` × ``width`` pixels, or a clear ``RuntimeError``.
 
-    The model's offscreen buffer is enlarged when needed (``model.vis.global_.offheight/offwidth``).
+    The model's offscreen buffer is enlarged when needed.
     """
     import mujoco
 
@@ -78,11 +79,13 @@ def make_renderer(model: Any, height: int, width: int) -> Any:
     try:
         return mujoco.Renderer(model, height=int(height), width=int(width))
     except Exception as err:  # the GL backends raise many different types
-        backend = os.environ.get("MUJOCO_GL", "<unset>")
+        backend = os.environ.get("MUJOCO_GL") or "<unset>"
         raise RuntimeError(
-            f"MuJoCo headless rendering failed with MUJOCO_GL={backend} ({type(err).__name__}: {err}); "
-            f"tried EGL, then OSMesa. To fix: {_HINT}. State observations (obs_mode='state') need no "
-            "rendering."
+            f"MuJoCo headless rendering failed with MUJOCO_GL={backend} ({type(err).__name__}: {err}). "
+            f"lfd_envs picks EGL, else OSMesa, when MUJOCO_GL is unset and there is no display, but only "
+            f"if it is imported before mujoco (the backend is fixed when mujoco is imported): set "
+            f"MUJOCO_GL=egl (or osmesa) in the environment or import lfd_envs first; {_HINT}. "
+            "State observations (obs_mode='state') need no rendering."
         ) from err
 
 

@@ -183,6 +183,7 @@ class SawyerIK:
         d.qpos[:] = self.env.data.qpos
         d.qpos[self._qadr] = q
         mujoco.mj_kinematics(self.model, d)
+        mujoco.mj_comPos(self.model, d)  # cdof/subtree_com for the Jacobians
         return d.site_xpos[self.site].copy(), d.site_xmat[self.site].reshape(3, 3).copy()
 
     def solve(self, pos: Sequence[float], axis: Sequence[float] | None, q_init: np.ndarray, *,

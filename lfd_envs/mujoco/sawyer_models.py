@@ -9,8 +9,8 @@ in the task modules, following the MoPA-RL parameters (SPEC §5):
 * the arm's torque motors are replaced by position servos, kp = (500, 500, 200, 200, 50, 50, 50),
   force limits (100, 100, 75, 75, 50, 50, 50) N·m, joint damping (50, 50, 25, 25, 10, 10, 10),
   armature 0.1, no joint friction;
-* gravity compensation is switched on by the env (MuJoCo's body ``gravcomp`` on every body
-  that moves with the arm, i.e. inside every 2 ms physics substep);
+* every robot body (and anything attached to the gripper) has MuJoCo's body ``gravcomp=1``:
+  gravity is cancelled inside every 2 ms physics substep;
 * the robot's collision cylinders become capsules (analytic collisions, MoPA-RL's choice);
 * the robot base sits at ``ROBOT_BASE_POS`` = (0, 0, 0.95), as in MoPA-RL.
 
@@ -123,6 +123,10 @@ def _prepare_robot(root: ET.Element, attach_to_eef: str, extra_robot_excludes: S
         eef = next(b for b in robot_body.iter("body") if b.get("name") == EEF_BODY)
         for child in ET.fromstring(f"<wrap>{attach_to_eef}</wrap>"):
             eef.append(child)
+    # MuJoCo sizes its gravity-compensation pass at compile time (``ngravcomp``), so the flag
+    # must be in the MJCF: setting ``body_gravcomp`` on a compiled model without any has no effect.
+    for body in robot_body.iter("body"):
+        body.set("gravcomp", "1")
     return robot_body
 
 
@@ -137,6 +141,7 @@ _SCENE_TEMPLATE = """
   <default>
     <default class="scene"><geom rgba="0.72 0.6 0.45 1" friction="1 0.005 0.0001"/></default>
     <default class="obstacle"><geom rgba="0.55 0.6 0.7 1" friction="1 0.005 0.0001"/></default>
+    {defaults}
   </default>
   <asset>
     <texture name="floor_tex" type="2d" builtin="checker" rgb1="0.82 0.82 0.8" rgb2="0.7 0.7 0.68"
@@ -165,6 +170,7 @@ def compose_scene_xml(
     gripper_kp: float = 1000.0,
     impratio: float = 1.0,
     noslip_iterations: int = 0,
+    defaults: str = "",
 ) -> str:
     """Full MJCF of a Sawyer scene.
 
@@ -176,6 +182,7 @@ def compose_scene_xml(
         excludes: body-name pairs whose contacts are excluded.
         gripper_kp: finger servo stiffness.
         impratio, noslip_iterations: solver options (friction-heavy scenes raise them).
+        defaults: extra MJCF ``<default class=...>`` elements (classes ``scene`` and ``obstacle`` exist).
     """
     robot_root = ET.fromstring(robosuite_sawyer_xml())
     robot_body = _prepare_robot(robot_root, attach_to_eef, ())
@@ -183,7 +190,7 @@ def compose_scene_xml(
     excl = "".join(f'<exclude body1="{a}" body2="{b}"/>' for a, b in [*base_excl, *excludes])
     xml = _SCENE_TEMPLATE.format(
         name=name, impratio=impratio, noslip=int(noslip_iterations), cameras=cameras,
-        scene=scene, excludes=excl, actuators=_arm_actuators(gripper_kp))
+        scene=scene, excludes=excl, defaults=defaults, actuators=_arm_actuators(gripper_kp))
     root = ET.fromstring(xml)
     assets = root.find("asset")
     for element in robot_root.find("asset") or []:

@@ -304,6 +304,7 @@ class SceneBuilder:
                 (grid[:-2, :], grid[2:, :], 2 * dy, BEND, (rows[:-2, :] // 2) % 2),
             ]
         for f, (gi, gj, rest, typ, par) in enumerate(fams):
+            # colours 0-3 stretch, 4-7 shear, 8-11 bend (one constraint type per colour)
             self._add_constraints(gi.ravel(), gj.ravel(), rest, typ, 2 * f + par.ravel())
         a = (jj[:-1, :-1] * nx + ii[:-1, :-1]).ravel() + start
         b = a + 1
@@ -359,7 +360,7 @@ class SceneBuilder:
         rest = seg * (1.0 + give)
         k = np.arange(n)
         self._add_constraints(first + k[:-1], first + k[1:], rest, STRETCH, k[:-1] % 2)
-        self._add_constraints(first + k[:-2], first + k[2:], 2 * rest, BEND, 2 + (k[:-2] // 2) % 2)
+        self._add_constraints(first + k[:-2], first + k[2:], 2 * rest, BEND, 8 + (k[:-2] // 2) % 2)
         h = RopeHandle(start=first, n=n, segment_length=seg)
         self.ropes.append(h)
         return h
@@ -465,6 +466,9 @@ class SceneBuilder:
             key = np.concatenate([ccol.astype(np.int64) * n + ci, ccol.astype(np.int64) * n + cj])
             if np.unique(key).size != key.size:
                 raise RuntimeError("internal error: constraint colouring is invalid")
+            for c in np.unique(ccol):
+                if np.unique(ct[ccol == c]).size != 1:
+                    raise RuntimeError("internal error: mixed constraint types in one colour")
         boxes = self._rigid
         rot = [_rot_z(b["yaw"]) for b in boxes]
         sb = self._static_boxes

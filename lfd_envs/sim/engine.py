@@ -3,18 +3,26 @@
 Pipeline of one frame (``SimParams.frame_dt``), for every substep ``h = frame_dt/substeps``:
 
 1. ``predict``: pickers move linearly from their position at the start of the frame towards
-   the target; grasped particles are placed at ``picker + offset``; free particles get gravity,
-   damping, the speed clamp and an explicit Euler position prediction.
-2. self-collision neighbour lists (per-world spatial hash, counting sort, closest-first lists).
-3. ``iterations`` x [snapshot, one Gauss-Seidel launch per particle colour (each particle
-   projects its stretch/shear/bend constraints, self-collision pairs, rigid-box, ground and
-   static-box contacts and writes only itself), shape matching of rigid boxes].
-4. ``update_velocity``: ``v = (x - x_prev)/h`` with Coulomb friction from the contact
-   corrections and the speed clamp.
+   the target; grasped particles are placed at ``picker + offset`` (kinematic); free particles
+   get gravity, damping, the speed clamp and an explicit Euler position prediction.
+2. self-collision neighbour lists: per-world spatial hash (counting sort), per particle the
+   closest candidates sorted by (distance, index) so the lists do not depend on traversal order.
+3. ``iterations`` x:
+   a. Gauss-Seidel over the distance constraints (stretch, shear, bend), one launch per
+      constraint colour (12 for a cloth grid, 4 for a rope): constraints of one colour share no
+      particle, so every launch is race-free and deterministic;
+   b. a per-particle Jacobi pass (each particle writes only itself, partners read from a
+      snapshot): self-collision, long-range tethers to pinned/grasped particles, rigid-box
+      contacts, ground and static boxes with continuous collision against the substep start;
+   c. shape matching of the rigid boxes (one thread per box).
+4. ``collision_passes`` extra particle passes, then ``update_velocity``: ``v = (x - x_prev)/h``
+   with Coulomb friction from the accumulated contact corrections and the speed clamp.
 
 All worlds are stepped by the same launches (flat arrays, world = particle // N); worlds never
 interact.  The whole frame is recorded once as a Warp graph (CPU: APIC replay, CUDA: CUDA graph),
-so launch overhead is negligible.  Everything is deterministic: same inputs, same bits.
+so launch overhead is negligible (~0.1 us per launch on CPU).  On CPU every kernel runs as one
+thread looping over its items (CPU launches are serial anyway, and this avoids Warp's per-thread
+argument copies); on CUDA the same kernels run one item per thread.  Same inputs, same bits.
 """
 
 from __future__ import annotations
@@ -135,22 +143,29 @@ class ParticleSim:
         self._box_of = wp.array(e0["box"], dtype=wp.int32, device=dev)
         pad = np.zeros(1, np.int32)
         self._con_type = e0["con_type"]
-        self._con_i = wp.array(e0["con_i"] if nnz else pad, dtype=wp.int32, device=dev)
-        self._con_j = wp.array(e0["con_j"] if nnz else pad, dtype=wp.int32, device=dev)
-        self._con_k = zeros(nnz, wp.float32)
-        self._write_stiffness()
+        ij = np.stack([e0["con_i"], e0["con_j"]], axis=1) if nnz else np.zeros((1, 2), np.int32)
+        self._con_ij = wp.array(ij.astype(np.int32), dtype=wp.vec2i, device=dev)
         self._rigid_start = wp.array(e0["rigid_start"] if B else np.zeros(1, np.int32), dtype=wp.int32, device=dev)
         self._rigid_count = wp.array(e0["rigid_count"] if B else np.zeros(1, np.int32), dtype=wp.int32, device=dev)
         # constraint colour sets: (offset, count) into the colour-sorted constraint arrays
         self._color_sets = []
         if nnz:
             colors, starts, counts = np.unique(e0["con_color"], return_index=True, return_counts=True)
-            self._color_sets = [(int(o), int(c)) for o, c in zip(starts, counts)]
+            self._color_sets = [(int(o), int(c), int(e0["con_type"][o])) for o, c in zip(starts, counts)]
+        # the same colour table as device arrays (fused CPU substep kernel); stiffness filled per capture
+        nc = max(1, len(self._color_sets))
+        self._color_off = wp.array(np.array([o for o, _, _ in self._color_sets] or [0], np.int32), dtype=wp.int32, device=dev)
+        self._color_cnt = wp.array(np.array([c for _, c, _ in self._color_sets] or [0], np.int32), dtype=wp.int32, device=dev)
+        self._color_k = wp.zeros(nc, dtype=wp.float32, device=dev)
+        # CPU: one fused launch per substep (all worlds, each world's substep in cache); CUDA: one
+        # launch per pipeline stage, one item per thread
+        self._fused = dev.is_cpu
         # boxes
         self._box_quat = zeros(W * B, wp.quat)
         self._box_pos = zeros(W * B, wp.vec3)
         self._box_rot = zeros(W * B, wp.mat33)
         self._box_he = zeros(W * B, wp.vec3)
+        self._box_kin = zeros(W * B, wp.int32)
         self._sbox_pos = zeros(W * S, wp.vec3)
         self._sbox_rot = zeros(W * S, wp.mat33)
         self._sbox_he = zeros(W * S, wp.vec3)
@@ -360,7 +375,11 @@ class ParticleSim:
         h = p.substep_dt
         damp = max(0.0, 1.0 - p.damping * h)
         sc_on = int(p.self_collision and self._has_sc)
+        stiffness = (p.stretch_stiffness, p.shear_stiffness, p.bend_stiffness)  # by constraint type
         q = self.particle_q
+        if self._fused:
+            self._frame_ops_fused(sc_on, stiffness)
+            return
         for s in range(p.substeps):
             alpha = (s + 1) / p.substeps
             wp.launch(K.predict, dim=self._dim(W * N), device=dev,
@@ -378,31 +397,65 @@ class ParticleSim:
                                   self._sorted_q, self._sorted_r, self._nbr, self._nbr_d, self._nbr_count, W * N,
                                   self._chunk(W * N)])
             for _ in range(p.iterations):
-                for off, cnt in self._color_sets:
-                    args = [self._con_i, self._con_j, self._con_k, self._con_rest, off, cnt,
-                            self._nnz, N, q, self._w_eff]
+                for off, cnt, typ in self._color_sets:
+                    args = [self._con_ij, self._con_rest, stiffness[typ], off, cnt, self._nnz, N, q,
+                            self._w_eff]
                     if dev.is_cpu:
                         wp.launch(K.solve_constraints_serial, dim=1, device=dev, inputs=args + [W])
                     else:
                         wp.launch(K.solve_constraints, dim=W * cnt, device=dev, inputs=args)
-                wp.copy(self._q_snap, q, count=W * N)
-                wp.launch(K.solve_particles, dim=self._dim(W * N), device=dev,
-                          inputs=[N, q, self._q_snap, self._q_prev, self._w_eff, self._attach,
-                                  self._radius, self._box_of, sc_on, self._sc_r, self._K,
-                                  self._nbr, self._nbr_count, S, self._sbox_pos, self._sbox_rot,
-                                  self._sbox_he, B, self._box_pos, self._box_rot, self._box_he,
-                                  self._fric, self._tether_anchor, self._tether_len, W * N,
-                                  self._chunk(W * N)])
+                self._particle_pass(sc_on)
                 if B:
                     wp.launch(K.shape_match, dim=W * B, device=dev,
                               inputs=[q, self._rest, self._inv_mass, self._attach,
                                       self._rigid_start, self._rigid_count, N, B,
                                       p.rigid_weight_kinematic, self._box_quat, self._box_pos,
-                                      self._box_rot])
+                                      self._box_rot, self._box_kin])
+            for _ in range(p.collision_passes if sc_on else 0):
+                self._particle_pass(sc_on)
             wp.launch(K.update_velocity, dim=self._dim(W * N), device=dev,
                       inputs=[q, self._q_prev, self.particle_v, self._inv_mass, self._attach,
                               self._fric, 1.0 / h, p.static_friction, p.dynamic_friction,
                               p.max_speed, W * N, self._chunk(W * N)])
+
+    def _frame_ops_fused(self, sc_on: int, stiffness: tuple[float, float, float]) -> None:
+        """CPU frame: one :func:`~lfd_envs.sim.kernels.substep_world` launch per substep."""
+        p = self._params
+        W, N, P, dev = self._W, self._N, self._P, self._device
+        h = p.substep_dt
+        damp = max(0.0, 1.0 - p.damping * h)
+        if self._color_sets:
+            self._color_k.numpy()[:] = [stiffness[typ] for _, _, typ in self._color_sets]
+        for s in range(p.substeps):
+            do_nbrs = int(bool(sc_on) and s % p.self_collision_interval == 0)
+            wp.launch(K.substep_world, dim=W, device=dev,
+                      inputs=[self.particle_q, self._q_prev, self._q_snap, self.particle_v, self._inv_mass,
+                              self._attach, self._attach_off, self._pick_start, self._pick_end, self._fric,
+                              self._w_eff, self._radius, self._box_of, self._obj, self._rest, self._sc_r,
+                              self._tether_anchor, self._tether_len,
+                              self._con_ij, self._con_rest, self._color_off, self._color_cnt, self._color_k,
+                              len(self._color_sets), self._nnz,
+                              self._grid_params, self._M, self._K, self._cell_start, self._cell_end,
+                              self._sorted, self._sorted_q, self._sorted_r, self._nbr, self._nbr_d,
+                              self._nbr_count, do_nbrs, sc_on, p.self_collision_relaxation,
+                              self._S, self._sbox_pos, self._sbox_rot, self._sbox_he,
+                              self._B, self._box_quat, self._box_pos, self._box_rot, self._box_he, self._box_kin,
+                              self._rigid_start, self._rigid_count, p.rigid_weight_kinematic,
+                              N, max(P, 1), (s + 1) / p.substeps, p.gravity, h, damp, p.max_speed,
+                              p.iterations, p.collision_passes if sc_on else 0,
+                              1.0 / h, p.static_friction, p.dynamic_friction])
+
+    def _particle_pass(self, sc_on: int) -> None:
+        W, N, S, B, q = self._W, self._N, self._S, self._B, self.particle_q
+        wp.copy(self._q_snap, q, count=W * N)
+        wp.launch(K.solve_particles, dim=self._dim(W * N), device=self._device,
+                  inputs=[N, q, self._q_snap, self._q_prev, self._w_eff, self._attach,
+                          self._radius, self._box_of, sc_on, self._sc_r,
+                          self._params.self_collision_relaxation, self._K,
+                          self._nbr, self._nbr_count, S, self._sbox_pos, self._sbox_rot,
+                          self._sbox_he, B, self._box_pos, self._box_rot, self._box_he,
+                          self._box_kin, self._fric, self._tether_anchor, self._tether_len,
+                          W * N, self._chunk(W * N)])
 
     def _chunk(self, total: int) -> int:
         """Particles per thread: CPU launches run serially, so one thread loops over all of them
@@ -421,7 +474,6 @@ class ParticleSim:
             raise ValueError("max_neighbors cannot change after construction")
         self._params = params
         self._graph = None
-        self._write_stiffness()
         for w, b in enumerate(self._builders):
             self._write_sc_radius(w, b._export())
         self._update_grid_params()
@@ -483,6 +535,7 @@ class ParticleSim:
             box_pos=get(self._box_pos, B, (B, 3)),
             box_rot=get(self._box_rot, B, (B, 3, 3)),
             box_half_extents=get(self._box_he, B, (B, 3)),
+            box_kinematic=get(self._box_kin, B, (B,)),
             static_pos=get(self._sbox_pos, S, (S, 3)),
             static_rot=get(self._sbox_rot, S, (S, 3, 3)),
             static_half_extents=get(self._sbox_he, S, (S, 3)),
@@ -507,6 +560,7 @@ class ParticleSim:
         "box_pos": ("_box_pos", "_B", lambda s: (s._B, 3), np.float32),
         "box_rot": ("_box_rot", "_B", lambda s: (s._B, 3, 3), np.float32),
         "box_half_extents": ("_box_he", "_B", lambda s: (s._B, 3), np.float32),
+        "box_kinematic": ("_box_kin", "_B", lambda s: (s._B,), np.int32),
         "static_pos": ("_sbox_pos", "_S", lambda s: (s._S, 3), np.float32),
         "static_rot": ("_sbox_rot", "_S", lambda s: (s._S, 3, 3), np.float32),
         "static_half_extents": ("_sbox_he", "_S", lambda s: (s._S, 3), np.float32),
@@ -629,12 +683,6 @@ class ParticleSim:
         else:
             tmp = wp.array(values, dtype=arr.dtype, device=self._device)
             wp.copy(arr, tmp, dest_offset=start, src_offset=0, count=n)
-
-    def _write_stiffness(self) -> None:
-        if self._nnz:
-            p = self._params
-            k = np.array([p.stretch_stiffness, p.shear_stiffness, p.bend_stiffness], np.float32)
-            self._write_slice(self._con_k, 0, k[self._con_type])
 
     def _sc_radius(self, e: dict) -> np.ndarray:
         p = self._params

@@ -4,9 +4,11 @@ Layout: all worlds share one flat particle array; particle ``i`` belongs to worl
 (``N`` particles per world).  Per-world topology arrays (constraint CSR, colours, object ids)
 are indexed with the world-local index ``li = i - w*N``.
 
-Determinism: every kernel writes only data owned by its thread (its particle, its world or its
-rigid box) and reads data that no other thread of the same launch writes, so results do not
-depend on thread scheduling (CPU or CUDA); there are no float atomics.
+Determinism: every kernel writes only data owned by its thread (its particle, its constraint's
+two particles within one colour, its world or its rigid box) and reads data that no other
+thread of the same launch writes, so results do not depend on thread scheduling (CPU or CUDA);
+there are no float atomics.  Kernels with ``total``/``chunk`` arguments process items
+``[tid*chunk, (tid+1)*chunk)``: one thread for everything on CPU, one item per thread on CUDA.
 """
 
 from __future__ import annotations
@@ -102,6 +104,49 @@ def box_contact(x: wp.vec3, xp: wp.vec3, r: float, c: wp.vec3, rot: wp.mat33, he
 
 
 # ----------------------------------------------------------------------------- substep start
+@wp.func
+def predict_range(
+    lo: int,
+    hi: int,
+    q: wp.array(dtype=wp.vec3),
+    q_prev: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    attach: wp.array(dtype=wp.int32),
+    attach_off: wp.array(dtype=wp.vec3),
+    pick_start: wp.array(dtype=wp.vec3),
+    pick_end: wp.array(dtype=wp.vec3),
+    fric: wp.array(dtype=wp.vec3),
+    w_eff: wp.array(dtype=float),
+    num_particles: int,
+    num_pickers: int,
+    alpha: float,
+    gravity: float,
+    dt: float,
+    damp: float,
+    max_speed: float,
+):
+    for i in range(lo, hi):
+        xp = q[i]
+        q_prev[i] = xp
+        fric[i] = wp.vec3(0.0, 0.0, 0.0)
+        a = attach[i]
+        wi = inv_mass[i]
+        if a >= 0:
+            wi = 0.0
+        w_eff[i] = wi
+        if a >= 0:
+            k = (i // num_particles) * num_pickers + a
+            q[i] = wp.lerp(pick_start[k], pick_end[k], alpha) + attach_off[i]
+        elif wi > 0.0:
+            vi = (v[i] + wp.vec3(0.0, 0.0, gravity * dt)) * damp
+            s = wp.length(vi)
+            if s > max_speed:
+                vi = vi * (max_speed / s)
+            v[i] = vi
+            q[i] = xp + vi * dt
+
+
 @wp.kernel
 def predict(
     q: wp.array(dtype=wp.vec3),
@@ -125,30 +170,15 @@ def predict(
     chunk: int,
 ):
     tid = wp.tid()
-    for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
-        xp = q[i]
-        q_prev[i] = xp
-        fric[i] = wp.vec3(0.0, 0.0, 0.0)
-        a = attach[i]
-        wi = inv_mass[i]
-        if a >= 0:
-            wi = 0.0
-        w_eff[i] = wi
-        if a >= 0:
-            k = (i // num_particles) * num_pickers + a
-            q[i] = wp.lerp(pick_start[k], pick_end[k], alpha) + attach_off[i]
-        elif wi > 0.0:
-            vi = (v[i] + wp.vec3(0.0, 0.0, gravity * dt)) * damp
-            s = wp.length(vi)
-            if s > max_speed:
-                vi = vi * (max_speed / s)
-            v[i] = vi
-            q[i] = xp + vi * dt
+    predict_range(tid * chunk, wp.min(tid * chunk + chunk, total), q, q_prev, v, inv_mass, attach, attach_off,
+                  pick_start, pick_end, fric, w_eff, num_particles, num_pickers, alpha, gravity, dt, damp,
+                  max_speed)
 
 
 # ----------------------------------------------------------------------------- neighbour search
-@wp.kernel
-def build_grid(
+@wp.func
+def build_grid_world(
+    w: int,
     q: wp.array(dtype=wp.vec3),
     sc_r: wp.array(dtype=float),
     grid_params: wp.array(dtype=float),
@@ -161,7 +191,6 @@ def build_grid(
     sorted_r: wp.array(dtype=float),
 ):
     """Counting sort of one world's self-colliding particles into a spatial hash (one thread per world)."""
-    w = wp.tid()
     inv_h = 1.0 / grid_params[0]
     mask = table_size - 1
     base = w * num_particles
@@ -193,7 +222,25 @@ def build_grid(
 
 
 @wp.kernel
-def build_neighbors(
+def build_grid(
+    q: wp.array(dtype=wp.vec3),
+    sc_r: wp.array(dtype=float),
+    grid_params: wp.array(dtype=float),
+    num_particles: int,
+    table_size: int,
+    cell_start: wp.array(dtype=wp.int32),
+    cell_end: wp.array(dtype=wp.int32),
+    sorted_idx: wp.array(dtype=wp.int32),
+    sorted_q: wp.array(dtype=wp.vec3),
+    sorted_r: wp.array(dtype=float),
+):
+    build_grid_world(wp.tid(), q, sc_r, grid_params, num_particles, table_size, cell_start, cell_end, sorted_idx, sorted_q, sorted_r)
+
+
+@wp.func
+def build_neighbors_range(
+    lo: int,
+    hi: int,
     q: wp.array(dtype=wp.vec3),
     sc_r: wp.array(dtype=float),
     obj: wp.array(dtype=wp.int32),
@@ -210,8 +257,6 @@ def build_neighbors(
     nbr: wp.array(dtype=wp.int32),
     nbr_d: wp.array(dtype=float),
     nbr_count: wp.array(dtype=wp.int32),
-    total: int,
-    chunk: int,
 ):
     """Per particle: the ``max_nbr`` closest self-collision candidates, sorted by (distance, index).
 
@@ -219,8 +264,7 @@ def build_neighbors(
     whether a world is simulated alone or in a batch.  Pairs of the same object whose rest
     distance is below their collision distance are filtered (FleX SelfCollideFilter).
     """
-    tid = wp.tid()
-    for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
+    for i in range(lo, hi):
         ri = sc_r[i]
         if ri <= 0.0:
             nbr_count[i] = 0
@@ -296,6 +340,31 @@ def build_neighbors(
         nbr_count[i] = count
 
 
+@wp.kernel
+def build_neighbors(
+    q: wp.array(dtype=wp.vec3),
+    sc_r: wp.array(dtype=float),
+    obj: wp.array(dtype=wp.int32),
+    rest: wp.array(dtype=wp.vec3),
+    grid_params: wp.array(dtype=float),
+    num_particles: int,
+    table_size: int,
+    max_nbr: int,
+    cell_start: wp.array(dtype=wp.int32),
+    cell_end: wp.array(dtype=wp.int32),
+    sorted_idx: wp.array(dtype=wp.int32),
+    sorted_q: wp.array(dtype=wp.vec3),
+    sorted_r: wp.array(dtype=float),
+    nbr: wp.array(dtype=wp.int32),
+    nbr_d: wp.array(dtype=float),
+    nbr_count: wp.array(dtype=wp.int32),
+    total: int,
+    chunk: int,
+):
+    tid = wp.tid()
+    build_neighbors_range(tid * chunk, wp.min(tid * chunk + chunk, total), q, sc_r, obj, rest, grid_params, num_particles, table_size, max_nbr, cell_start, cell_end, sorted_idx, sorted_q, sorted_r, nbr, nbr_d, nbr_count)
+
+
 # ----------------------------------------------------------------------------- solver
 @wp.func
 def project_distance(xi: wp.vec3, xj: wp.vec3, wi: float, wj: float, k: float, rest: float):
@@ -312,10 +381,9 @@ def project_distance(xi: wp.vec3, xj: wp.vec3, wi: float, wj: float, k: float, r
 
 @wp.kernel
 def solve_constraints(
-    con_i: wp.array(dtype=wp.int32),
-    con_j: wp.array(dtype=wp.int32),
-    con_k: wp.array(dtype=float),
+    con_ij: wp.array(dtype=wp.vec2i),
     con_rest: wp.array(dtype=float),
+    stiffness: float,
     color_offset: int,
     color_count: int,
     num_cons: int,
@@ -330,19 +398,73 @@ def solve_constraints(
     w = t // color_count
     c = color_offset + (t - w * color_count)
     base = w * num_particles
-    i = base + con_i[c]
-    j = base + con_j[c]
-    xi, xj = project_distance(q[i], q[j], w_eff[i], w_eff[j], con_k[c], con_rest[w * num_cons + c])
+    ij = con_ij[c]
+    i = base + ij[0]
+    j = base + ij[1]
+    xi, xj = project_distance(q[i], q[j], w_eff[i], w_eff[j], stiffness, con_rest[w * num_cons + c])
     q[i] = xi
     q[j] = xj
 
 
+@wp.func
+def solve_color_world(
+    w: int,
+    con_ij: wp.array(dtype=wp.vec2i),
+    con_rest: wp.array(dtype=float),
+    stiffness: float,
+    color_offset: int,
+    color_count: int,
+    num_cons: int,
+    num_particles: int,
+    q: wp.array(dtype=wp.vec3),
+    w_eff: wp.array(dtype=float),
+):
+    """Project the constraints of one colour of world ``w`` in order.  Unrolled by four: the
+    particles of four constraints are loaded before any is stored (constraints of one colour
+    share no particle, so this is the same arithmetic with more instruction-level parallelism)."""
+    base = w * num_particles
+    rbase = w * num_cons
+    n4 = color_count // 4
+    for t in range(n4):
+        c = color_offset + 4 * t
+        ij0 = con_ij[c]
+        ij1 = con_ij[c + 1]
+        ij2 = con_ij[c + 2]
+        ij3 = con_ij[c + 3]
+        i0 = base + ij0[0]
+        j0 = base + ij0[1]
+        i1 = base + ij1[0]
+        j1 = base + ij1[1]
+        i2 = base + ij2[0]
+        j2 = base + ij2[1]
+        i3 = base + ij3[0]
+        j3 = base + ij3[1]
+        a0, b0 = project_distance(q[i0], q[j0], w_eff[i0], w_eff[j0], stiffness, con_rest[rbase + c])
+        a1, b1 = project_distance(q[i1], q[j1], w_eff[i1], w_eff[j1], stiffness, con_rest[rbase + c + 1])
+        a2, b2 = project_distance(q[i2], q[j2], w_eff[i2], w_eff[j2], stiffness, con_rest[rbase + c + 2])
+        a3, b3 = project_distance(q[i3], q[j3], w_eff[i3], w_eff[j3], stiffness, con_rest[rbase + c + 3])
+        q[i0] = a0
+        q[j0] = b0
+        q[i1] = a1
+        q[j1] = b1
+        q[i2] = a2
+        q[j2] = b2
+        q[i3] = a3
+        q[j3] = b3
+    for c in range(color_offset + 4 * n4, color_offset + color_count):
+        ij = con_ij[c]
+        i = base + ij[0]
+        j = base + ij[1]
+        xi, xj = project_distance(q[i], q[j], w_eff[i], w_eff[j], stiffness, con_rest[rbase + c])
+        q[i] = xi
+        q[j] = xj
+
+
 @wp.kernel
 def solve_constraints_serial(
-    con_i: wp.array(dtype=wp.int32),
-    con_j: wp.array(dtype=wp.int32),
-    con_k: wp.array(dtype=float),
+    con_ij: wp.array(dtype=wp.vec2i),
     con_rest: wp.array(dtype=float),
+    stiffness: float,
     color_offset: int,
     color_count: int,
     num_cons: int,
@@ -352,21 +474,16 @@ def solve_constraints_serial(
     num_worlds: int,
 ):
     """Same as :func:`solve_constraints` with one thread looping over all worlds and constraints
-    of the colour (CPU variant: CPU launches are serial, and this avoids per-thread overhead).
-    Results are bitwise identical to the GPU variant."""
+    of the colour (CPU variant: CPU launches are serial, and this avoids per-thread overhead)."""
     for w in range(num_worlds):
-        base = w * num_particles
-        rbase = w * num_cons
-        for c in range(color_offset, color_offset + color_count):
-            i = base + con_i[c]
-            j = base + con_j[c]
-            xi, xj = project_distance(q[i], q[j], w_eff[i], w_eff[j], con_k[c], con_rest[rbase + c])
-            q[i] = xi
-            q[j] = xj
+        solve_color_world(w, con_ij, con_rest, stiffness, color_offset, color_count, num_cons,
+                          num_particles, q, w_eff)
 
 
-@wp.kernel
-def solve_particles(
+@wp.func
+def solve_particles_range(
+    lo: int,
+    hi: int,
     num_particles: int,
     q: wp.array(dtype=wp.vec3),
     q_snap: wp.array(dtype=wp.vec3),
@@ -377,6 +494,7 @@ def solve_particles(
     box_of: wp.array(dtype=wp.int32),
     sc_on: int,
     sc_r: wp.array(dtype=float),
+    sc_relax: float,
     max_nbr: int,
     nbr: wp.array(dtype=wp.int32),
     nbr_count: wp.array(dtype=wp.int32),
@@ -388,17 +506,15 @@ def solve_particles(
     box_pos: wp.array(dtype=wp.vec3),
     box_rot: wp.array(dtype=wp.mat33),
     box_he: wp.array(dtype=wp.vec3),
+    box_kin: wp.array(dtype=wp.int32),
     fric: wp.array(dtype=wp.vec3),
     tether_anchor: wp.array(dtype=wp.int32),
     tether_len: wp.array(dtype=float),
-    total: int,
-    chunk: int,
 ):
     """Per-particle pass (Jacobi: partners are read from the snapshot ``q_snap``, each particle
     writes only itself): self-collision pairs, tethers, rigid boxes, ground and static boxes
     (with continuous collision against the substep start), friction bookkeeping."""
-    tid = wp.tid()
-    for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
+    for i in range(lo, hi):
         wi = w_eff[i]
         if wi == 0.0 and attach[i] < 0:
             continue  # pinned
@@ -420,7 +536,7 @@ def solve_particles(
                         l2 = wp.dot(d, d)
                         if l2 < dmin * dmin and l2 > 1.0e-18:
                             l = wp.sqrt(l2)
-                            x = x + d * ((dmin - l) / l * wi / (wi + wj))
+                            x = x + d * (sc_relax * (dmin - l) / l * wi / (wi + wj))
             ta = tether_anchor[i]
             if ta >= 0:
                 d = x - q_snap[ta]
@@ -428,18 +544,28 @@ def solve_particles(
                 tl = tether_len[i]
                 if l > tl:
                     x = x - d * ((l - tl) / l)
+        x0 = x  # contact corrections from here on feed the friction model
+        if wi > 0.0:
             # dynamic rigid boxes (one-way for cloth/rope, half-half between boxes)
             mybox = box_of[li]
+            mykin = int(0)
+            if mybox >= 0:
+                mykin = box_kin[w * num_boxes + mybox]
             for b in range(num_boxes):
                 if b != mybox:
                     kb = w * num_boxes + b
                     xn = box_contact(x, x, r, box_pos[kb], box_rot[kb], box_he[kb], 0)
                     if mybox >= 0:
-                        x = x + 0.5 * (xn - x)
+                        # box-box: split the correction; a held/pinned box does not yield
+                        f = float(0.5)
+                        if box_kin[kb] != 0 and mykin == 0:
+                            f = 1.0
+                        elif mykin != 0 and box_kin[kb] == 0:
+                            f = 0.0
+                        x = x + f * (xn - x)
                     else:
                         x = xn
-        # static geometry with friction bookkeeping
-        x0 = x
+        # ground and static boxes
         if x[2] < r:
             x = wp.vec3(x[0], x[1], r)
         if num_static > 0:
@@ -454,7 +580,43 @@ def solve_particles(
 
 
 @wp.kernel
-def shape_match(
+def solve_particles(
+    num_particles: int,
+    q: wp.array(dtype=wp.vec3),
+    q_snap: wp.array(dtype=wp.vec3),
+    q_prev: wp.array(dtype=wp.vec3),
+    w_eff: wp.array(dtype=float),
+    attach: wp.array(dtype=wp.int32),
+    radius: wp.array(dtype=float),
+    box_of: wp.array(dtype=wp.int32),
+    sc_on: int,
+    sc_r: wp.array(dtype=float),
+    sc_relax: float,
+    max_nbr: int,
+    nbr: wp.array(dtype=wp.int32),
+    nbr_count: wp.array(dtype=wp.int32),
+    num_static: int,
+    sbox_pos: wp.array(dtype=wp.vec3),
+    sbox_rot: wp.array(dtype=wp.mat33),
+    sbox_he: wp.array(dtype=wp.vec3),
+    num_boxes: int,
+    box_pos: wp.array(dtype=wp.vec3),
+    box_rot: wp.array(dtype=wp.mat33),
+    box_he: wp.array(dtype=wp.vec3),
+    box_kin: wp.array(dtype=wp.int32),
+    fric: wp.array(dtype=wp.vec3),
+    tether_anchor: wp.array(dtype=wp.int32),
+    tether_len: wp.array(dtype=float),
+    total: int,
+    chunk: int,
+):
+    tid = wp.tid()
+    solve_particles_range(tid * chunk, wp.min(tid * chunk + chunk, total), num_particles, q, q_snap, q_prev, w_eff, attach, radius, box_of, sc_on, sc_r, sc_relax, max_nbr, nbr, nbr_count, num_static, sbox_pos, sbox_rot, sbox_he, num_boxes, box_pos, box_rot, box_he, box_kin, fric, tether_anchor, tether_len)
+
+
+@wp.func
+def shape_match_box(
+    kb: int,
     q: wp.array(dtype=wp.vec3),
     rest: wp.array(dtype=wp.vec3),
     inv_mass: wp.array(dtype=float),
@@ -467,12 +629,12 @@ def shape_match(
     box_quat: wp.array(dtype=wp.quat),
     box_pos: wp.array(dtype=wp.vec3),
     box_rot: wp.array(dtype=wp.mat33),
+    box_kin: wp.array(dtype=wp.int32),
 ):
     """Shape matching of one rigid box (one thread per world x box): best rigid transform of the
     rest shape onto the current particles (grasped/pinned particles weigh ``kin_weight``), then
     free particles are moved onto the rigid shape.  Rotation by warm-started iterative extraction
     (Mueller et al. 2016) so it is smooth and deterministic."""
-    kb = wp.tid()
     w = kb // num_boxes
     b = kb - w * num_boxes
     start = w * num_particles + rigid_start[b]
@@ -480,11 +642,13 @@ def shape_match(
     c = wp.vec3(0.0, 0.0, 0.0)
     c0 = wp.vec3(0.0, 0.0, 0.0)
     wsum = float(0.0)
+    kin = int(0)
     for k in range(n):
         i = start + k
         m = float(1.0)
         if attach[i] >= 0 or inv_mass[i] == 0.0:
             m = kin_weight
+            kin = 1
         c = c + m * q[i]
         c0 = c0 + m * rest[i]
         wsum = wsum + m
@@ -516,6 +680,7 @@ def shape_match(
     R = wp.quat_to_matrix(qt)
     box_quat[kb] = qt
     box_rot[kb] = R
+    box_kin[kb] = kin
     box_pos[kb] = c - R * c0
     for k in range(n):
         i = start + k
@@ -523,9 +688,30 @@ def shape_match(
             q[i] = c + R * (rest[i] - c0)
 
 
-# ----------------------------------------------------------------------------- substep end
 @wp.kernel
-def update_velocity(
+def shape_match(
+    q: wp.array(dtype=wp.vec3),
+    rest: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    attach: wp.array(dtype=wp.int32),
+    rigid_start: wp.array(dtype=wp.int32),
+    rigid_count: wp.array(dtype=wp.int32),
+    num_particles: int,
+    num_boxes: int,
+    kin_weight: float,
+    box_quat: wp.array(dtype=wp.quat),
+    box_pos: wp.array(dtype=wp.vec3),
+    box_rot: wp.array(dtype=wp.mat33),
+    box_kin: wp.array(dtype=wp.int32),
+):
+    shape_match_box(wp.tid(), q, rest, inv_mass, attach, rigid_start, rigid_count, num_particles, num_boxes, kin_weight, box_quat, box_pos, box_rot, box_kin)
+
+
+# ----------------------------------------------------------------------------- substep end
+@wp.func
+def update_velocity_range(
+    lo: int,
+    hi: int,
     q: wp.array(dtype=wp.vec3),
     q_prev: wp.array(dtype=wp.vec3),
     v: wp.array(dtype=wp.vec3),
@@ -536,11 +722,8 @@ def update_velocity(
     mu_s: float,
     mu_k: float,
     max_speed: float,
-    total: int,
-    chunk: int,
 ):
-    tid = wp.tid()
-    for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
+    for i in range(lo, hi):
         att = attach[i]
         if att < 0 and inv_mass[i] == 0.0:
             v[i] = wp.vec3(0.0, 0.0, 0.0)
@@ -564,6 +747,127 @@ def update_velocity(
         if s > max_speed:
             vi = vi * (max_speed / s)
         v[i] = vi
+
+
+@wp.kernel
+def update_velocity(
+    q: wp.array(dtype=wp.vec3),
+    q_prev: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    attach: wp.array(dtype=wp.int32),
+    fric: wp.array(dtype=wp.vec3),
+    inv_dt: float,
+    mu_s: float,
+    mu_k: float,
+    max_speed: float,
+    total: int,
+    chunk: int,
+):
+    tid = wp.tid()
+    update_velocity_range(tid * chunk, wp.min(tid * chunk + chunk, total), q, q_prev, v, inv_mass, attach, fric, inv_dt, mu_s, mu_k, max_speed)
+
+
+# ----------------------------------------------------------------------------- fused CPU substep
+@wp.kernel
+def substep_world(
+    q: wp.array(dtype=wp.vec3),
+    q_prev: wp.array(dtype=wp.vec3),
+    q_snap: wp.array(dtype=wp.vec3),
+    v: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    attach: wp.array(dtype=wp.int32),
+    attach_off: wp.array(dtype=wp.vec3),
+    pick_start: wp.array(dtype=wp.vec3),
+    pick_end: wp.array(dtype=wp.vec3),
+    fric: wp.array(dtype=wp.vec3),
+    w_eff: wp.array(dtype=float),
+    radius: wp.array(dtype=float),
+    box_of: wp.array(dtype=wp.int32),
+    obj: wp.array(dtype=wp.int32),
+    rest: wp.array(dtype=wp.vec3),
+    sc_r: wp.array(dtype=float),
+    tether_anchor: wp.array(dtype=wp.int32),
+    tether_len: wp.array(dtype=float),
+    con_ij: wp.array(dtype=wp.vec2i),
+    con_rest: wp.array(dtype=float),
+    color_off: wp.array(dtype=wp.int32),
+    color_cnt: wp.array(dtype=wp.int32),
+    color_k: wp.array(dtype=float),
+    num_colors: int,
+    num_cons: int,
+    grid_params: wp.array(dtype=float),
+    table_size: int,
+    max_nbr: int,
+    cell_start: wp.array(dtype=wp.int32),
+    cell_end: wp.array(dtype=wp.int32),
+    sorted_idx: wp.array(dtype=wp.int32),
+    sorted_q: wp.array(dtype=wp.vec3),
+    sorted_r: wp.array(dtype=float),
+    nbr: wp.array(dtype=wp.int32),
+    nbr_d: wp.array(dtype=float),
+    nbr_count: wp.array(dtype=wp.int32),
+    do_neighbors: int,
+    sc_on: int,
+    sc_relax: float,
+    num_static: int,
+    sbox_pos: wp.array(dtype=wp.vec3),
+    sbox_rot: wp.array(dtype=wp.mat33),
+    sbox_he: wp.array(dtype=wp.vec3),
+    num_boxes: int,
+    box_quat: wp.array(dtype=wp.quat),
+    box_pos: wp.array(dtype=wp.vec3),
+    box_rot: wp.array(dtype=wp.mat33),
+    box_he: wp.array(dtype=wp.vec3),
+    box_kin: wp.array(dtype=wp.int32),
+    rigid_start: wp.array(dtype=wp.int32),
+    rigid_count: wp.array(dtype=wp.int32),
+    kin_weight: float,
+    num_particles: int,
+    num_pickers: int,
+    alpha: float,
+    gravity: float,
+    dt: float,
+    damp: float,
+    max_speed: float,
+    iterations: int,
+    collision_passes: int,
+    inv_dt: float,
+    mu_s: float,
+    mu_k: float,
+):
+    """One whole substep of one world per thread (CPU path, ``dim = num_worlds``).
+
+    Runs exactly the operations of the per-launch pipeline (predict, neighbour lists, solver
+    iterations with colours / particle pass / shape matching, collision passes, velocity update)
+    in the same order for world ``w``; worlds are independent, so the results are bitwise those
+    of the launch-by-launch pipeline.  A world's data stays in cache for the whole substep and
+    one launch replaces ~100."""
+    w = wp.tid()
+    lo = w * num_particles
+    hi = lo + num_particles
+    predict_range(lo, hi, q, q_prev, v, inv_mass, attach, attach_off, pick_start, pick_end, fric, w_eff,
+                  num_particles, num_pickers, alpha, gravity, dt, damp, max_speed)
+    if do_neighbors != 0:
+        build_grid_world(w, q, sc_r, grid_params, num_particles, table_size, cell_start, cell_end,
+                         sorted_idx, sorted_q, sorted_r)
+        build_neighbors_range(lo, hi, q, sc_r, obj, rest, grid_params, num_particles, table_size, max_nbr,
+                              cell_start, cell_end, sorted_idx, sorted_q, sorted_r, nbr, nbr_d, nbr_count)
+    for it in range(iterations + collision_passes):
+        if it < iterations:
+            for c in range(num_colors):
+                solve_color_world(w, con_ij, con_rest, color_k[c], color_off[c], color_cnt[c], num_cons,
+                                  num_particles, q, w_eff)
+        for i in range(lo, hi):
+            q_snap[i] = q[i]
+        solve_particles_range(lo, hi, num_particles, q, q_snap, q_prev, w_eff, attach, radius, box_of, sc_on,
+                              sc_r, sc_relax, max_nbr, nbr, nbr_count, num_static, sbox_pos, sbox_rot, sbox_he,
+                              num_boxes, box_pos, box_rot, box_he, box_kin, fric, tether_anchor, tether_len)
+        if it < iterations:
+            for b in range(num_boxes):
+                shape_match_box(w * num_boxes + b, q, rest, inv_mass, attach, rigid_start, rigid_count,
+                                num_particles, num_boxes, kin_weight, box_quat, box_pos, box_rot, box_kin)
+    update_velocity_range(lo, hi, q, q_prev, v, inv_mass, attach, fric, inv_dt, mu_s, mu_k, max_speed)
 
 
 # ----------------------------------------------------------------------------- tethers

@@ -51,6 +51,10 @@ class SimParams:
         self_collision_interval: Rebuild the self-collision neighbour lists every this many
             substeps (1 = every substep, most robust).
         max_neighbors: Maximum self-collision neighbours kept per particle (closest first).
+        self_collision_relaxation: Over-relaxation of the Jacobi self-collision response
+            (1 = each particle of a pair removes its mass share of the overlap; in [1, 2)).
+        collision_passes: Extra contact/self-collision passes after the last solver iteration
+            of every substep (keeps layers of folded cloth apart; 0 disables).
         stretch_stiffness: PBD stiffness in [0, 1] of the stretch constraints (grid
             neighbours / rope segments).
         shear_stiffness: PBD stiffness in [0, 1] of the cloth diagonal constraints.
@@ -85,6 +89,8 @@ class SimParams:
     self_collision_margin: float = 0.25
     self_collision_interval: int = 1
     max_neighbors: int = 16
+    self_collision_relaxation: float = 1.0
+    collision_passes: int = 1
     stretch_stiffness: float = 1.0
     shear_stiffness: float = 0.9
     bend_stiffness: float = 1.0
@@ -136,6 +142,9 @@ class SimParams:
         _int("iterations", 1)
         _int("self_collision_interval", 1)
         _int("max_neighbors", 1)
+        _int("collision_passes", 0)
+        if not 1.0 <= _finite("self_collision_relaxation") < 2.0:
+            raise ValueError("SimParams.self_collision_relaxation must lie in [1, 2)")
         for name in ("self_collision", "tethers"):
             if not isinstance(getattr(self, name), bool):
                 raise TypeError(f"SimParams.{name} must be a bool")

@@ -47,6 +47,8 @@ from lfd_envs.tasks.picker_actions import ACTION_MODES
 __all__ = ["ParticleEnv", "ParticleVectorEnv", "PARTICLE_OBS_MODES"]
 
 PARTICLE_OBS_MODES = OBS_MODES + ("particles",)
+#: bound (m) of the position entries of state and particle observations
+POSITION_BOUND = 5.0
 
 
 def _check_device(device: Any) -> str:
@@ -78,9 +80,9 @@ class _SpacesMixin:
     task: ParticleTask
 
     def _task_spaces(self) -> tuple[spaces.Box, spaces.Box, spaces.Box]:
-        state = spaces.Box(-np.inf, np.inf, (self.task.state_dim(),), np.float32)
+        state = spaces.Box(-POSITION_BOUND, POSITION_BOUND, (self.task.state_dim(),), np.float32)
         n = self.batch.sim.num_particles + self.task.num_pickers
-        particles = spaces.Box(-np.inf, np.inf, (n, 3), np.float32)
+        particles = spaces.Box(-POSITION_BOUND, POSITION_BOUND, (n, 3), np.float32)
         return self.batch.action_mode.action_space, state, particles
 
 

@@ -128,8 +128,9 @@ class PickPlaceSchedule:
     """Timing and path of one pick-and-place step.
 
     Path of a picker: approach (above the pick point at ``hover``) -> descend -> grasp -> lift
-    (vertically by ``lift``) -> carry along an arc to above the place point -> lower -> release
-    -> retreat (``hover`` above the place point). The carry arc rises ``arc`` above the straight
+    (vertically by ``lift``) -> carry along an arc to above the place point -> lower -> hold
+    (``hold_frames``, lets a draped cloth come to rest) -> release -> retreat (``hover`` above
+    the place point). The carry arc rises ``arc`` above the straight
     line between its ends, ``arc = clip(arc_ratio * d, 0, arc_max)`` for a horizontal distance
     ``d``: with ``arc_ratio = 0.5`` the held point moves on a half circle around the middle, the
     natural motion of a fold (the held edge keeps its distance to the fold line); with 0 it is a
@@ -160,6 +161,7 @@ class PickPlaceSchedule:
     lift_frames: int = 8
     carry_frames: int = 56
     lower_frames: int = 8
+    hold_frames: int = 0
     release_frames: int = 1
     retreat_frames: int = 4
     settle_frames: int = 10
@@ -167,7 +169,7 @@ class PickPlaceSchedule:
     @property
     def total_frames(self) -> int:
         return (self.approach_frames + self.descend_frames + self.grasp_frames + self.lift_frames
-                + self.carry_frames + self.lower_frames + self.release_frames + self.retreat_frames
+                + self.carry_frames + self.lower_frames + self.hold_frames + self.release_frames + self.retreat_frames
                 + self.settle_frames)
 
     def arc_height(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
@@ -252,6 +254,7 @@ class PickPlaceActions(ActionMode):
             (wpt["lifted"], True, s.lift_frames, s.carry_speed, None),
             (wpt["above_place"], True, s.carry_frames, s.carry_speed, arc),
             (place, True, s.lower_frames, s.carry_speed, None),
+            (place, True, s.hold_frames, 0.0, None),
             (place, False, s.release_frames, s.free_speed, None),
             (wpt["retreat"], False, s.retreat_frames, s.free_speed, None),
         ]
@@ -268,7 +271,12 @@ class PickPlaceActions(ActionMode):
         frames = np.arange(total)[:, None]  # (T, 1)
         for end, grab, max_frames, speed, arc in self.phases(pick, place):
             length = np.linalg.norm(end - start, axis=-1) if arc is None else arc_length(start, end, arc)
-            n = np.clip(np.ceil(length.max(axis=-1) / speed - 1e-9), 1, max_frames).astype(np.int64)  # (W,)
+            if max_frames == 0:
+                continue
+            if speed > 0:
+                n = np.clip(np.ceil(length.max(axis=-1) / speed - 1e-9), 1, max_frames).astype(np.int64)  # (W,)
+            else:  # fixed-length phase (hold)
+                n = np.full(w, max_frames, dtype=np.int64)
             k = frames - t0[None, :] + 1  # (T, W) frame number inside this phase
             alpha = np.clip(k / n[None, :], 0.0, 1.0)[..., None]  # (T, W, 1)
             inside = (k >= 1) & (k <= n[None, :])

@@ -1,0 +1,268 @@
+"""Learning-from-demonstration baselines with the SB3 API (SPEC §6): SAC-LfD, BC and AWAC.
+
+* :class:`SACLfD` — SB3 ``SAC`` whose replay buffer starts full of demonstrations.
+* :class:`BC` — behaviour cloning of demonstration actions (state, image or Dict observations;
+  MSE on the mean of a :class:`~lfd_agents.networks.GaussianActor`); ``learn`` runs epochs
+  over the dataset and never touches the env.
+* :class:`AWAC` — advantage-weighted actor-critic: the DMfD machinery without the entropy term
+  and without RSI, first ``offline_steps`` gradient steps on the demonstrations, then online.
+
+Plain SB3 ``SAC``/``TD3``/``PPO`` run on every lfd env as they are (for 32×32 images pass
+``policy_kwargs=dict(features_extractor_class=lfd_agents.ImageEncoder)``; SB3's NatureCNN
+needs ≥ 36×36 pixels).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any, ClassVar
+
+import numpy as np
+import torch as th
+import torch.nn.functional as F
+from gymnasium import spaces
+from stable_baselines3 import SAC
+from stable_baselines3.common.base_class import BaseAlgorithm
+from stable_baselines3.common.buffers import DictReplayBuffer, ReplayBuffer
+from stable_baselines3.common.policies import BasePolicy
+from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, FlattenExtractor
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
+from torch import nn
+
+from lfd_agents.augment import augment_observations, image_keys
+from lfd_agents.demos import fill_replay_buffer, load_episodes
+from lfd_agents.dmfd import DMfD
+from lfd_agents.networks import GaussianActor, ImageEncoder, KeySubsetExtractor
+
+
+# ----------------------------------------------------------------------------------- SAC-LfD
+class SACLfD(SAC):
+    """SB3 SAC with the replay buffer pre-filled with demonstrations ("replay-buffer spiking").
+
+    Args:
+        policy, env: as for ``SAC``.
+        demonstrations: anything :func:`lfd_agents.demos.load_episodes` accepts.
+        duplicate_demos: repeat the demonstrations to fill the buffer (``True``) or ``k`` times.
+        learning_starts: 0 by default (the buffer already holds data).
+        **kwargs: every other ``SAC`` argument.
+    """
+
+    def __init__(self, policy: Any, env: GymEnv | str | None, demonstrations: Any = None,
+                 duplicate_demos: bool | int = False, learning_starts: int = 0, _init_setup_model: bool = True,
+                 **kwargs: Any):
+        self._episodes = load_episodes(demonstrations)
+        self.duplicate_demos = duplicate_demos
+        super().__init__(policy, env, learning_starts=learning_starts, _init_setup_model=False, **kwargs)
+        if _init_setup_model:
+            self._setup_model()
+
+    def _setup_model(self) -> None:
+        super()._setup_model()
+        if self._episodes:
+            fill_replay_buffer(self.replay_buffer, self._episodes, duplicate=self.duplicate_demos)
+
+    def add_demonstrations(self, demonstrations: Any, duplicate: bool | int = False) -> int:
+        """Write demonstrations into the replay buffer; returns the count."""
+        return fill_replay_buffer(self.replay_buffer, demonstrations, duplicate=duplicate)
+
+    def _excluded_save_params(self) -> list[str]:
+        return super()._excluded_save_params() + ["_episodes"]
+
+
+# ----------------------------------------------------------------------------------- AWAC
+class AWAC(DMfD):
+    """Advantage-weighted actor-critic (offline pre-training on demonstrations, then online).
+
+    DMfD with ``entropy_weight=0`` (pure advantage-weighted regression actor), no RSI,
+    ``offline_steps`` gradient steps on the demonstration buffer before the first env step,
+    and SB3/AWAC defaults γ = 0.99, 256-256 networks. Every DMfD argument can be passed.
+    """
+
+    def __init__(self, policy: Any, env: GymEnv | str | None, demonstrations: Any = None,
+                 offline_steps: int = 25_000, gamma: float = 0.99, entropy_weight: float = 0.0,
+                 rsi_prob: float | str = 0.0, policy_kwargs: dict[str, Any] | None = None, **kwargs: Any):
+        policy_kwargs = {"net_arch": [256, 256], **(policy_kwargs or {})}
+        super().__init__(policy, env, demonstrations, offline_steps=offline_steps, gamma=gamma,
+                         entropy_weight=entropy_weight, rsi_prob=rsi_prob, policy_kwargs=policy_kwargs, **kwargs)
+
+    def learn(self, total_timesteps: int, callback: Any = None, log_interval: int = 4, tb_log_name: str = "AWAC",
+              reset_num_timesteps: bool = True, progress_bar: bool = False) -> "AWAC":
+        return super().learn(total_timesteps, callback, log_interval, tb_log_name, reset_num_timesteps, progress_bar)
+
+
+# ----------------------------------------------------------------------------------- BC
+class BCPolicy(BasePolicy):
+    """Behaviour-cloning policy: a :class:`GaussianActor` whose mean is the action.
+
+    Args:
+        observation_space, action_space, lr_schedule: given by the algorithm.
+        net_arch: hidden sizes (256-256).
+        activation_fn, features_extractor_class, features_extractor_kwargs: encoder and MLP.
+        actor_keys: Dict observations only — keys the policy sees (all when None).
+    """
+
+    def __init__(self, observation_space: spaces.Space, action_space: spaces.Box, lr_schedule: Schedule,
+                 net_arch: list[int] | None = None, activation_fn: type[nn.Module] = nn.ReLU,
+                 features_extractor_class: type[BaseFeaturesExtractor] = FlattenExtractor,
+                 features_extractor_kwargs: dict[str, Any] | None = None, actor_keys: list[str] | None = None,
+                 normalize_images: bool = True, optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
+                 optimizer_kwargs: dict[str, Any] | None = None):
+        super().__init__(observation_space, action_space, features_extractor_class, features_extractor_kwargs,
+                         optimizer_class=optimizer_class, optimizer_kwargs=optimizer_kwargs, squash_output=True,
+                         normalize_images=normalize_images)
+        self.net_arch = list(net_arch) if net_arch is not None else [256, 256]
+        self.activation_fn = activation_fn
+        self.actor_keys = list(actor_keys) if actor_keys is not None else None
+        kwargs = dict(self.features_extractor_kwargs)
+        if self.actor_keys is not None:
+            kwargs["keys"] = self.actor_keys
+        fe = features_extractor_class(observation_space, **kwargs)
+        self.actor = GaussianActor(observation_space, action_space, self.net_arch, fe, fe.features_dim,
+                                   activation_fn, normalize_images)
+        self.optimizer = optimizer_class(self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)
+
+    def _get_constructor_parameters(self) -> dict[str, Any]:
+        data = super()._get_constructor_parameters()
+        data.update(net_arch=self.net_arch, activation_fn=self.activation_fn,
+                    features_extractor_class=self.features_extractor_class,
+                    features_extractor_kwargs=self.features_extractor_kwargs, actor_keys=self.actor_keys,
+                    optimizer_class=self.optimizer_class, optimizer_kwargs=self.optimizer_kwargs,
+                    lr_schedule=self._dummy_schedule)
+        return data
+
+    def forward(self, obs: Any, deterministic: bool = True) -> th.Tensor:
+        return self._predict(obs, deterministic)
+
+    def _predict(self, observation: Any, deterministic: bool = True) -> th.Tensor:
+        return self.actor(observation, deterministic=True)
+
+    def mean_action(self, obs: Any) -> th.Tensor:
+        """Predicted action in [-1, 1] (differentiable)."""
+        return self.actor.distribution(obs).mean
+
+
+class BCCnnPolicy(BCPolicy):
+    """:class:`BCPolicy` for image observations."""
+
+    def __init__(self, observation_space: spaces.Space, action_space: spaces.Box, lr_schedule: Schedule,
+                 activation_fn: type[nn.Module] = nn.LeakyReLU,
+                 features_extractor_class: type[BaseFeaturesExtractor] = ImageEncoder, **kwargs: Any):
+        super().__init__(observation_space, action_space, lr_schedule, activation_fn=activation_fn,
+                         features_extractor_class=features_extractor_class, **kwargs)
+
+
+class BCMultiInputPolicy(BCPolicy):
+    """:class:`BCPolicy` for Dict observations (every key, or ``actor_keys``)."""
+
+    def __init__(self, observation_space: spaces.Space, action_space: spaces.Box, lr_schedule: Schedule,
+                 activation_fn: type[nn.Module] = nn.LeakyReLU,
+                 features_extractor_class: type[BaseFeaturesExtractor] = KeySubsetExtractor, **kwargs: Any):
+        super().__init__(observation_space, action_space, lr_schedule, activation_fn=activation_fn,
+                         features_extractor_class=features_extractor_class, **kwargs)
+
+
+class BC(BaseAlgorithm):
+    """Behaviour cloning from a demonstration dataset, SB3 style.
+
+    Args:
+        policy: ``"MlpPolicy"``, ``"CnnPolicy"`` or ``"MultiInputPolicy"`` (or a BCPolicy class).
+        env: env (or id) giving the observation/action spaces; ``learn`` does not step it.
+        demonstrations: anything :func:`lfd_agents.demos.load_episodes` accepts.
+        learning_rate: Adam learning rate (1e-3).
+        batch_size: minibatch size (256).
+        n_epochs: epochs run by each ``learn`` call unless ``epochs`` is given (10).
+        augment: pad-and-random-crop augmentation of image inputs (``"auto"``: on for images).
+        aug_pad: augmentation padding (2).
+    """
+
+    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
+        "MlpPolicy": BCPolicy, "CnnPolicy": BCCnnPolicy, "MultiInputPolicy": BCMultiInputPolicy}
+    policy: BCPolicy
+
+    def __init__(self, policy: str | type[BCPolicy], env: GymEnv | str | None, demonstrations: Any = None,
+                 learning_rate: float | Schedule = 1e-3, batch_size: int = 256, n_epochs: int = 10,
+                 augment: bool | str = "auto", aug_pad: int = 2, policy_kwargs: dict[str, Any] | None = None,
+                 tensorboard_log: str | None = None, verbose: int = 0, seed: int | None = None,
+                 device: th.device | str = "auto", _init_setup_model: bool = True):
+        super().__init__(policy, env, learning_rate, policy_kwargs=policy_kwargs, tensorboard_log=tensorboard_log,
+                         verbose=verbose, device=device, support_multi_env=True, seed=seed,
+                         supported_action_spaces=(spaces.Box,))
+        if batch_size < 1 or n_epochs < 0:
+            raise ValueError("batch_size must be >= 1 and n_epochs >= 0")
+        self.batch_size = int(batch_size)
+        self.n_epochs = int(n_epochs)
+        self.augment = augment
+        self.aug_pad = int(aug_pad)
+        self._episodes = load_episodes(demonstrations)
+        self.dataset: ReplayBuffer | DictReplayBuffer | None = None
+        if _init_setup_model:
+            self._setup_model()
+
+    def _setup_model(self) -> None:
+        self._setup_lr_schedule()
+        self.set_random_seed(self.seed)
+        self.policy = self.policy_class(self.observation_space, self.action_space, self.lr_schedule,
+                                        **self.policy_kwargs).to(self.device)
+        use_aug = bool(image_keys(self.observation_space)) if self.augment == "auto" else bool(self.augment)
+        self._aug_keys = image_keys(self.observation_space) if use_aug else []
+        self.dataset = None
+        if self._episodes:
+            self.set_demonstrations(self._episodes)
+
+    def set_demonstrations(self, demonstrations: Any) -> int:
+        """Replace the training set; returns the number of transitions."""
+        episodes = load_episodes(demonstrations)
+        n = sum(len(ep) for ep in episodes)
+        if n == 0:
+            raise ValueError("BC needs at least one demonstration transition")
+        cls = DictReplayBuffer if isinstance(self.observation_space, spaces.Dict) else ReplayBuffer
+        self.dataset = cls(n, self.observation_space, self.action_space, device=self.device, n_envs=1)
+        return fill_replay_buffer(self.dataset, episodes)
+
+    def _excluded_save_params(self) -> list[str]:
+        return super()._excluded_save_params() + ["_episodes", "dataset"]
+
+    def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
+        return ["policy", "policy.optimizer"], []
+
+    def loss(self, observations: Any, actions: th.Tensor) -> th.Tensor:
+        """MSE between the policy's mean action and the (scaled) demonstration actions."""
+        return F.mse_loss(self.policy.mean_action(observations), actions)
+
+    def learn(self, total_timesteps: int = 0, callback: Any = None, log_interval: int = 1, tb_log_name: str = "BC",
+              reset_num_timesteps: bool = True, progress_bar: bool = False, *, epochs: int | None = None) -> "BC":
+        """Run ``epochs`` (default ``n_epochs``) epochs over the demonstrations.
+
+        ``total_timesteps`` is accepted for harness compatibility and ignored (BC is offline).
+        """
+        if self.dataset is None:
+            raise RuntimeError("BC has no demonstrations; pass demonstrations= or call set_demonstrations()")
+        n_epochs = self.n_epochs if epochs is None else int(epochs)
+        _, callback = self._setup_learn(0, callback, reset_num_timesteps, tb_log_name, progress_bar)
+        callback.on_training_start(locals(), globals())
+        self.policy.set_training_mode(True)
+        n = self.dataset.size()
+        start = time.time()
+        for epoch in range(n_epochs):
+            self._update_current_progress_remaining(epoch, max(n_epochs, 1))
+            self._update_learning_rate(self.policy.optimizer)
+            perm = np.random.permutation(n)
+            losses = []
+            for i in range(0, n, self.batch_size):
+                data = self.dataset._get_samples(perm[i:i + self.batch_size])
+                obs = augment_observations(data.observations, self._aug_keys, self.aug_pad)
+                loss = self.loss(obs, data.actions)
+                self.policy.optimizer.zero_grad()
+                loss.backward()
+                self.policy.optimizer.step()
+                losses.append(loss.item())
+            self._n_updates += len(losses)
+            self.logger.record("train/epoch", epoch + 1)
+            self.logger.record("train/bc_loss", float(np.mean(losses)))
+            self.logger.record("train/n_updates", self._n_updates)
+            self.logger.record("time/elapsed_s", time.time() - start)
+            if log_interval and (epoch + 1) % log_interval == 0:
+                self.logger.dump(step=self._n_updates)
+        self.policy.set_training_mode(False)
+        callback.on_training_end()
+        return self

@@ -1,0 +1,92 @@
+"""Scripted expert of DryCloth-v0 (both action modes, any picker count).
+
+Two or more pickers (MAIL's teacher): one move - the pickers take evenly spaced points of the
+plank-side edge (grid column 0, the two corners first) and carry them 0.1 m past the plank,
+0.55 m high, spread along the plank over the cloth's width (centred on the edge's middle);
+released there, the cloth falls over the plank and hangs on both sides.
+
+One picker: (1) the middle of the plank-side edge goes 0.12 m past the plank, 0.55 m high (the
+cloth hangs over the plank, bunched along it); (2, 3) the two corners of the opposite edge,
+which hang on the near side, are pulled apart along the plank (0.05 m in front of it, 0.2 m
+high) to spread the cloth. In delta mode the moves are executed by the closed-loop state
+machine of :class:`~lfd_envs.experts.picker_expert.PickerExpert` while the horizon lasts.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from lfd_envs.experts.picker_expert import Move, PickerExpert
+
+__all__ = ["DryClothExpert"]
+
+#: (distance past the plank, height) of the places of the teacher move
+TEACHER_PLACE = (0.1, 0.55)
+#: single picker: the edge middle goes here, then the opposite corners are spread here
+SINGLE_OVER = (0.12, 0.55)
+SINGLE_SPREAD = (-0.05, 0.2)
+#: particles lower than this are picked with the picker at its lowest height
+GROUND = 0.03
+
+
+class DryClothExpert(PickerExpert):
+    """Expert of :class:`~lfd_envs.tasks.dry_cloth.DryClothEnv` (see module docstring)."""
+
+    def reset(self) -> None:
+        super().reset()
+        self._frame: tuple[float, float] | None = None  # (edge middle along the plank, sign)
+
+    def _ctx(self) -> dict[str, np.ndarray]:
+        return {k: v[0] for k, v in self.base.batch.ctx.items()}
+
+    def _along(self, point: np.ndarray) -> float:
+        plank = self._ctx()["plank"]
+        u = np.array([-np.sin(plank[3]), np.cos(plank[3])])
+        return float(np.dot(np.asarray(point)[:2] - plank[:2], u))
+
+    def _edge_frame(self) -> tuple[float, float]:
+        """Position of the plank-side edge's middle along the plank and the direction in which
+        its rows grow, both taken at the first move of the episode."""
+        if self._frame is None:
+            pos, task = self.positions, self.task
+            n = task.resolution
+            a0, a1 = self._along(pos[task.grid_index(0, 0)]), self._along(pos[task.grid_index(n - 1, 0)])
+            self._frame = (0.5 * (a0 + a1), 1.0 if a1 >= a0 else -1.0)
+        return self._frame
+
+    def plan(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """``(particle indices (k,), place points (k, 3))`` of every move."""
+        task, ctx = self.task, self._ctx()
+        n, p, side = task.resolution, self.num_pickers, 0.5
+        mid, sign = self._edge_frame()
+        if p >= 2:
+            frac = np.linspace(0.0, 1.0, p)
+            rows = np.round(frac * (n - 1)).astype(int)
+            places = np.stack([task.far_side_point(ctx, mid + sign * (f - 0.5) * side, *TEACHER_PLACE) for f in frac])
+            return [(task.grid_index(rows, 0), places)]
+        over = task.far_side_point(ctx, mid, *SINGLE_OVER)[None]
+        low = task.far_side_point(ctx, mid - sign * 0.5 * side, *SINGLE_SPREAD)[None]
+        high = task.far_side_point(ctx, mid + sign * 0.5 * side, *SINGLE_SPREAD)[None]
+        return [(task.grid_index(np.array([n // 2]), 0), over),
+                (task.grid_index(np.array([0]), n - 1), low),
+                (task.grid_index(np.array([n - 1]), n - 1), high)]
+
+    def next_move(self) -> Move | None:
+        plan = self.plan()
+        if self.moves_done >= len(plan):
+            return None
+        idx, places = plan[self.moves_done]
+        return self._make_move(idx, places)
+
+    def retarget(self, move: Move) -> Move:
+        return self._make_move(move.info["picks"], move.info["places"])
+
+    def _make_move(self, idx: np.ndarray, places: np.ndarray) -> Move:
+        pick = self.positions[idx].copy()
+        pick[pick[:, 2] < GROUND, 2] = 0.0  # descend as low as the picker can go
+        k = len(idx)
+        full_pick, full_place = self.pickers.copy(), self.pickers.copy()
+        full_pick[:k], full_place[:k] = pick, places
+        active = np.zeros(self.num_pickers, dtype=bool)
+        active[:k] = True
+        return Move(full_pick, full_place, active, info={"picks": idx, "places": places})

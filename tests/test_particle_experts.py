@@ -1,0 +1,73 @@
+"""Scripted experts of the particle tasks beat random actions by a wide margin.
+
+Fixed eval variants, small resolutions; the 100-variant numbers come from
+``python -m benchmarks.experts`` (see the README table).
+"""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import lfd_envs  # noqa: F401
+from lfd_envs.experts import make_expert
+
+CASES = [  # env id, kwargs, required margin over random
+    ("StraightenRope-v0", dict(num_pickers=2, action_mode="delta", resolution=21), 0.25),
+    ("StraightenRope-v0", dict(num_pickers=1, action_mode="delta", resolution=21), 0.25),
+    ("ClothFold-v0", dict(num_pickers=2, action_mode="pick_place", resolution=20), 0.4),
+    ("ClothFoldDiagonalPinned-v0", dict(num_pickers=1, action_mode="delta", resolution=20), 0.4),
+    ("ClothFoldDiagonalUnpinned-v0", dict(num_pickers=1, action_mode="delta", resolution=20), 0.4),
+]
+
+
+def _episode(env, policy, variant):
+    obs, info = env.reset(seed=0, options={"variant": variant, "split": "eval"})
+    policy.reset()
+    done = False
+    while not done:
+        action, _ = policy.predict(obs, deterministic=True)
+        obs, _, term, trunc, info = env.step(action)
+        done = term or trunc
+    return info["normalized_performance"]
+
+
+class _Random:
+    def __init__(self, env, seed):
+        self.space = env.action_space
+        self.space.seed(seed)
+
+    def reset(self):
+        pass
+
+    def predict(self, obs, deterministic=True):
+        return self.space.sample(), None
+
+
+@pytest.mark.parametrize("env_id,kwargs,margin", CASES, ids=[f"{c[0]}-{c[1]['action_mode']}-{c[1]['num_pickers']}" for c in CASES])
+def test_expert_beats_random(env_id, kwargs, margin):
+    env = gym.make(env_id, obs_mode="state", **kwargs)
+    expert, rand = make_expert(env), _Random(env, 0)
+    variants = (0, 2)
+    expert_scores = [_episode(env, expert, k) for k in variants]
+    random_scores = [_episode(env, rand, k) for k in variants]
+    assert np.mean(expert_scores) > np.mean(random_scores) + margin, (expert_scores, random_scores)
+    assert min(expert_scores) > 0.5
+
+
+@pytest.mark.parametrize("env_id", ["StraightenRope-v0", "ClothFold-v0", "ClothFoldDiagonal-v0"])
+@pytest.mark.parametrize("action_mode", ["delta", "pick_place"])
+def test_expert_actions_valid_for_any_picker_count(env_id, action_mode):
+    for p in (1, 3):
+        env = gym.make(env_id, num_pickers=p, action_mode=action_mode, obs_mode="state", resolution=10)
+        expert = make_expert(env)
+        obs, _ = env.reset(seed=1)
+        expert.reset()
+        for _ in range(3):
+            action, state = expert.predict(obs)
+            assert state is None and env.action_space.contains(action)
+            obs, *_ = env.step(action)
+
+
+def test_make_expert_rejects_other_envs():
+    with pytest.raises(ValueError, match="no scripted expert"):
+        make_expert(gym.make("CartPole-v1"))
