@@ -115,7 +115,8 @@ class ImageTokenizer(nn.Module):
     def __init__(self, cond_dim: int, d_model: int, widths: Sequence[int] = (16, 32, 64, 64),
                  tokens_hw: tuple[int, int] = (2, 2)):
         super().__init__()
-        self.stem = nn.Sequential(nn.Conv2d(3, widths[0], 3, stride=2, padding=1), nn.GroupNorm(4, widths[0]), nn.SiLU())
+        # CoordConv: two extra input channels with the pixel coordinates make image positions explicit
+        self.stem = nn.Sequential(nn.Conv2d(5, widths[0], 3, stride=2, padding=1), nn.GroupNorm(4, widths[0]), nn.SiLU())
         blocks, c = [], widths[0]
         for i, w in enumerate(widths[1:]):
             blocks.append(SeparableFiLMBlock(c, w, stride=2 if i < 2 else 1, cond_dim=cond_dim))
@@ -125,8 +126,15 @@ class ImageTokenizer(nn.Module):
         self.out = nn.Linear(c, d_model)
         self.num_tokens = tokens_hw[0] * tokens_hw[1]
 
+    @staticmethod
+    def _with_coordinates(images: th.Tensor) -> th.Tensor:
+        n, _, h, w = images.shape
+        ys = th.linspace(-1.0, 1.0, h, device=images.device).view(1, 1, h, 1).expand(n, 1, h, w)
+        xs = th.linspace(-1.0, 1.0, w, device=images.device).view(1, 1, 1, w).expand(n, 1, h, w)
+        return th.cat([images, ys, xs], dim=1)
+
     def forward(self, images: th.Tensor, cond: th.Tensor) -> th.Tensor:
-        x = self.stem(images)
+        x = self.stem(self._with_coordinates(images))
         for block in self.blocks:
             x = block(x, cond)
         x = self.pool(x).flatten(2).transpose(1, 2)  # (N, k, C)

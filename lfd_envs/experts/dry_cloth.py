@@ -7,8 +7,8 @@ released there, the cloth falls over the plank and hangs on both sides.
 
 One picker: (1) the middle of the plank-side edge goes 0.12 m past the plank, 0.55 m high (the
 cloth hangs over the plank, bunched along it); (2, 3) the two corners of the opposite edge,
-which hang on the near side, are pulled apart along the plank (0.05 m in front of it, 0.2 m
-high) to spread the cloth. In delta mode the moves are executed by the closed-loop state
+which hang on the near side, are pulled apart along the plank (0.2 m either side of the middle,
+0.04 m in front of the plank, 0.26 m high) to spread the cloth. In delta mode the moves are executed by the closed-loop state
 machine of :class:`~lfd_envs.experts.picker_expert.PickerExpert` while the horizon lasts.
 """
 
@@ -24,9 +24,11 @@ __all__ = ["DryClothExpert"]
 TEACHER_PLACE = (0.1, 0.55)
 #: single picker: the edge middle goes here, then the opposite corners are spread here
 SINGLE_OVER = (0.12, 0.55)
-SINGLE_SPREAD = (-0.05, 0.2)
+SINGLE_SPREAD = (-0.04, 0.26)
 #: particles lower than this are picked with the picker at its lowest height
 GROUND = 0.03
+#: single picker: the opposite corners are pulled this far (m) along the plank from the middle
+SPREAD_HALF_WIDTH = 0.2
 
 
 class DryClothExpert(PickerExpert):
@@ -65,8 +67,8 @@ class DryClothExpert(PickerExpert):
             places = np.stack([task.far_side_point(ctx, mid + sign * (f - 0.5) * side, *TEACHER_PLACE) for f in frac])
             return [(task.grid_index(rows, 0), places)]
         over = task.far_side_point(ctx, mid, *SINGLE_OVER)[None]
-        low = task.far_side_point(ctx, mid - sign * 0.5 * side, *SINGLE_SPREAD)[None]
-        high = task.far_side_point(ctx, mid + sign * 0.5 * side, *SINGLE_SPREAD)[None]
+        low = task.far_side_point(ctx, mid - sign * SPREAD_HALF_WIDTH, *SINGLE_SPREAD)[None]
+        high = task.far_side_point(ctx, mid + sign * SPREAD_HALF_WIDTH, *SINGLE_SPREAD)[None]
         return [(task.grid_index(np.array([n // 2]), 0), over),
                 (task.grid_index(np.array([0]), n - 1), low),
                 (task.grid_index(np.array([n - 1]), n - 1), high)]

@@ -16,6 +16,11 @@ State observation (float32), common part (32): sin q (7), cos q (7), joint veloc
 finger positions (2), finger velocities (2), grip-site position (3), gripper quaternion
 (4, w x y z); each task appends its object/goal features (see the task modules).
 
+Images (``obs_mode`` "image"/"state+image" and ``render()``) come from the task camera
+``task_cam`` (default 84×84). ``robot_visual="primitive"`` (default) draws the robot with its
+collision primitives; ``"mesh"`` draws robosuite's visual meshes (≈280k triangles; about 30×
+slower with software OpenGL).
+
 Every env has the planning interface of :class:`~lfd_envs.mujoco.planning.PlanningMixin`
 (``is_valid``, ``execute_path`` ...), image observations from the task camera (default 84×84)
 and a goal-conditioned ``GoalEnv`` variant (``goal_conditioned=True``).
@@ -32,15 +37,19 @@ import mujoco
 import numpy as np
 from gymnasium import spaces
 
+from lfd_envs.core.errors import check_choice
 from lfd_envs.mujoco import sawyer_models as sm
 from lfd_envs.mujoco.base import MujocoEnv
 from lfd_envs.mujoco.planning import PlanningMixin
+from lfd_envs.mujoco.rendering import make_renderer
 
 DQ_STEP = 0.05
 FRAME_SKIP = 75
 TIMESTEP = 0.002
 HORIZON = 250
 COMMON_OBS_DIM = 32
+#: how the robot is drawn in images: its collision primitives (fast) or robosuite's meshes
+ROBOT_VISUALS = ("primitive", "mesh")
 
 
 class SawyerObstacleEnv(PlanningMixin, MujocoEnv):
@@ -60,9 +69,14 @@ class SawyerObstacleEnv(PlanningMixin, MujocoEnv):
     finger_hold: ClassVar[float] = sm.FINGER_CLOSED
 
     def _init_sawyer(self, *, obs_mode: str, image_size: Any, render_mode: str | None, horizon: int,
-                     goal_conditioned: bool) -> None:
+                     goal_conditioned: bool, robot_visual: str = "primitive") -> None:
         """Everything shared by the Sawyer tasks' ``__init__`` (call first)."""
         self._init_contract(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon)
+        self.robot_visual = check_choice("robot_visual", robot_visual, ROBOT_VISUALS)
+        self._scene_option = mujoco.MjvOption()
+        if self.robot_visual == "primitive":  # collision primitives instead of ~280k mesh triangles
+            self._scene_option.geomgroup[1] = 0
+            self._scene_option.geomgroup[3] = 1
         self._init_mujoco(
             sm.load_model(self._scene_xml()), arm_joint_names=sm.ARM_JOINTS, dq_step=DQ_STEP,
             frame_skip=FRAME_SKIP, timestep=TIMESTEP, gravity_compensation="gravcomp",  # kp set in the MJCF
@@ -82,6 +96,14 @@ class SawyerObstacleEnv(PlanningMixin, MujocoEnv):
 
     def _scene_xml(self) -> str:
         raise NotImplementedError
+
+    def _render(self, height: int, width: int) -> np.ndarray:
+        key = (int(height), int(width))
+        renderer = self._renderers.get(key)
+        if renderer is None:
+            renderer = self._renderers[key] = make_renderer(self.model, *key)
+        renderer.update_scene(self.data, camera=self.camera, scene_option=self._scene_option)
+        return renderer.render().copy()
 
     # ------------------------------------------------------------------ simulation helpers
     def _reset_robot(self) -> None:

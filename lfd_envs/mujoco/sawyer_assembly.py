@@ -95,7 +95,7 @@ def scene_xml() -> str:
     scene = sm.work_table((0.66, 0.0, 0.41), (0.4, 0.6, 0.41)) + _furniture_xml()
     finger_bodies = ("gripper0_right_l_finger", "gripper0_right_r_finger",
                      "gripper0_right_l_finger_tip", "gripper0_right_r_finger_tip")
-    camera = lookat_camera("task_cam", (1.6, 0.55, 1.65), (0.62, -0.2, 0.95), fovy=45)
+    camera = lookat_camera("task_cam", (1.75, 0.8, 1.85), (0.6, -0.05, 1.0), fovy=50)
     furniture = ('<default class="furniture"><geom rgba="0.93 0.86 0.7 1" density="300" '
                  'friction="1 0.005 0.0001"/></default>')
     return sm.compose_scene_xml("sawyer_assembly_obstacle", scene, camera, attach_to_eef=_held_leg_xml(),
@@ -111,6 +111,7 @@ class SawyerAssemblyObstacleEnv(SawyerObstacleEnv):
         render_mode: ``"rgb_array"`` or None.
         horizon: low-level steps per episode (250).
         goal_conditioned: GoalEnv Dict observations for HER (``obs_mode="state"`` only).
+        robot_visual: ``"primitive"`` (robot drawn with its collision shapes, fast) or ``"mesh"``.
     """
 
     task_name = "SawyerAssemblyObstacle"
@@ -121,9 +122,10 @@ class SawyerAssemblyObstacleEnv(SawyerObstacleEnv):
     finger_hold = 0.007  # finger pads on the leg (contacts between them are excluded)
 
     def __init__(self, obs_mode: str = "state", image_size: int | tuple[int, int] = 84,
-                 render_mode: str | None = None, horizon: int = HORIZON, goal_conditioned: bool = False) -> None:
+                 render_mode: str | None = None, horizon: int = HORIZON, goal_conditioned: bool = False,
+                 robot_visual: str = "primitive") -> None:
         self._init_sawyer(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
-                          goal_conditioned=goal_conditioned)
+                          goal_conditioned=goal_conditioned, robot_visual=robot_visual)
         m = self.model
         self._head = m.site("leg_head").id
         self._tail = m.site("leg_tail").id

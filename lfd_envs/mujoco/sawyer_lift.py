@@ -87,6 +87,7 @@ class SawyerLiftObstacleEnv(SawyerObstacleEnv):
         render_mode: ``"rgb_array"`` or None.
         horizon: low-level steps per episode (250).
         goal_conditioned: GoalEnv Dict observations for HER (``obs_mode="state"`` only).
+        robot_visual: ``"primitive"`` (robot drawn with its collision shapes, fast) or ``"mesh"``.
     """
 
     task_name = "SawyerLiftObstacle"
@@ -101,9 +102,10 @@ class SawyerLiftObstacleEnv(SawyerObstacleEnv):
     finger_hold = sm.FINGER_OPEN
 
     def __init__(self, obs_mode: str = "state", image_size: int | tuple[int, int] = 84,
-                 render_mode: str | None = None, horizon: int = HORIZON, goal_conditioned: bool = False) -> None:
+                 render_mode: str | None = None, horizon: int = HORIZON, goal_conditioned: bool = False,
+                 robot_visual: str = "primitive") -> None:
         self._init_sawyer(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
-                          goal_conditioned=goal_conditioned)
+                          goal_conditioned=goal_conditioned, robot_visual=robot_visual)
         m = self.model
         self._can_qadr = int(m.jnt_qposadr[m.joint("can_joint").id])
         self._can_geom = np.array([m.geom("can").id])

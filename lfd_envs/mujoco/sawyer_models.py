@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import functools
 import logging
+from collections import defaultdict
 import warnings
 import xml.etree.ElementTree as ET
 from typing import Sequence
@@ -79,6 +80,10 @@ def robosuite_sawyer_xml() -> str:
     return robot.get_xml()
 
 
+#: colours of the robot's collision primitives (drawn when ``robot_visual="primitive"``)
+_PRIMITIVE_RGBA = defaultdict(lambda: "0.78 0.12 0.1 1", {"fixed": "0.2 0.2 0.22 1", "gripper0": "0.18 0.18 0.2 1"})
+
+
 def _fmt(values: Sequence[float]) -> str:
     return " ".join(f"{float(v):.6g}" for v in values)
 
@@ -113,6 +118,7 @@ def _prepare_robot(root: ET.Element, attach_to_eef: str, extra_robot_excludes: S
     for geom in robot_body.iter("geom"):  # collision geoms: group 3 (hidden in renders)
         if geom.get("contype", "1") != "0" or geom.get("conaffinity", "1") != "0":
             geom.set("group", "3")
+            geom.set("rgba", _PRIMITIVE_RGBA[geom.get("name", "").split("_")[0]])
             if geom.get("type") == "cylinder":  # capsules as in MoPA-RL: analytic, faster contacts
                 radius, half = (float(v) for v in geom.get("size").split()[:2])
                 geom.set("type", "capsule")

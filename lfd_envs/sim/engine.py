@@ -152,14 +152,6 @@ class ParticleSim:
         if nnz:
             colors, starts, counts = np.unique(e0["con_color"], return_index=True, return_counts=True)
             self._color_sets = [(int(o), int(c), int(e0["con_type"][o])) for o, c in zip(starts, counts)]
-        # the same colour table as device arrays (fused CPU substep kernel); stiffness filled per capture
-        nc = max(1, len(self._color_sets))
-        self._color_off = wp.array(np.array([o for o, _, _ in self._color_sets] or [0], np.int32), dtype=wp.int32, device=dev)
-        self._color_cnt = wp.array(np.array([c for _, c, _ in self._color_sets] or [0], np.int32), dtype=wp.int32, device=dev)
-        self._color_k = wp.zeros(nc, dtype=wp.float32, device=dev)
-        # CPU: one fused launch per substep (all worlds, each world's substep in cache); CUDA: one
-        # launch per pipeline stage, one item per thread
-        self._fused = dev.is_cpu
         # boxes
         self._box_quat = zeros(W * B, wp.quat)
         self._box_pos = zeros(W * B, wp.vec3)
@@ -377,9 +369,6 @@ class ParticleSim:
         sc_on = int(p.self_collision and self._has_sc)
         stiffness = (p.stretch_stiffness, p.shear_stiffness, p.bend_stiffness)  # by constraint type
         q = self.particle_q
-        if self._fused:
-            self._frame_ops_fused(sc_on, stiffness)
-            return
         for s in range(p.substeps):
             alpha = (s + 1) / p.substeps
             wp.launch(K.predict, dim=self._dim(W * N), device=dev,
@@ -417,33 +406,6 @@ class ParticleSim:
                       inputs=[q, self._q_prev, self.particle_v, self._inv_mass, self._attach,
                               self._fric, 1.0 / h, p.static_friction, p.dynamic_friction,
                               p.max_speed, W * N, self._chunk(W * N)])
-
-    def _frame_ops_fused(self, sc_on: int, stiffness: tuple[float, float, float]) -> None:
-        """CPU frame: one :func:`~lfd_envs.sim.kernels.substep_world` launch per substep."""
-        p = self._params
-        W, N, P, dev = self._W, self._N, self._P, self._device
-        h = p.substep_dt
-        damp = max(0.0, 1.0 - p.damping * h)
-        if self._color_sets:
-            self._color_k.numpy()[:] = [stiffness[typ] for _, _, typ in self._color_sets]
-        for s in range(p.substeps):
-            do_nbrs = int(bool(sc_on) and s % p.self_collision_interval == 0)
-            wp.launch(K.substep_world, dim=W, device=dev,
-                      inputs=[self.particle_q, self._q_prev, self._q_snap, self.particle_v, self._inv_mass,
-                              self._attach, self._attach_off, self._pick_start, self._pick_end, self._fric,
-                              self._w_eff, self._radius, self._box_of, self._obj, self._rest, self._sc_r,
-                              self._tether_anchor, self._tether_len,
-                              self._con_ij, self._con_rest, self._color_off, self._color_cnt, self._color_k,
-                              len(self._color_sets), self._nnz,
-                              self._grid_params, self._M, self._K, self._cell_start, self._cell_end,
-                              self._sorted, self._sorted_q, self._sorted_r, self._nbr, self._nbr_d,
-                              self._nbr_count, do_nbrs, sc_on, p.self_collision_relaxation,
-                              self._S, self._sbox_pos, self._sbox_rot, self._sbox_he,
-                              self._B, self._box_quat, self._box_pos, self._box_rot, self._box_he, self._box_kin,
-                              self._rigid_start, self._rigid_count, p.rigid_weight_kinematic,
-                              N, max(P, 1), (s + 1) / p.substeps, p.gravity, h, damp, p.max_speed,
-                              p.iterations, p.collision_passes if sc_on else 0,
-                              1.0 / h, p.static_friction, p.dynamic_friction])
 
     def _particle_pass(self, sc_on: int) -> None:
         W, N, S, B, q = self._W, self._N, self._S, self._B, self.particle_q

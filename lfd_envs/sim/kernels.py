@@ -169,6 +169,7 @@ def predict(
     total: int,
     chunk: int,
 ):
+    """Kernel wrapper of :func:`predict_range` (see there)."""
     tid = wp.tid()
     predict_range(tid * chunk, wp.min(tid * chunk + chunk, total), q, q_prev, v, inv_mass, attach, attach_off,
                   pick_start, pick_end, fric, w_eff, num_particles, num_pickers, alpha, gravity, dt, damp,
@@ -234,6 +235,7 @@ def build_grid(
     sorted_q: wp.array(dtype=wp.vec3),
     sorted_r: wp.array(dtype=float),
 ):
+    """Kernel wrapper of :func:`build_grid_world` (see there)."""
     build_grid_world(wp.tid(), q, sc_r, grid_params, num_particles, table_size, cell_start, cell_end, sorted_idx, sorted_q, sorted_r)
 
 
@@ -361,6 +363,7 @@ def build_neighbors(
     total: int,
     chunk: int,
 ):
+    """Kernel wrapper of :func:`build_neighbors_range` (see there)."""
     tid = wp.tid()
     build_neighbors_range(tid * chunk, wp.min(tid * chunk + chunk, total), q, sc_r, obj, rest, grid_params, num_particles, table_size, max_nbr, cell_start, cell_end, sorted_idx, sorted_q, sorted_r, nbr, nbr_d, nbr_count)
 
@@ -610,6 +613,7 @@ def solve_particles(
     total: int,
     chunk: int,
 ):
+    """Kernel wrapper of :func:`solve_particles_range` (see there)."""
     tid = wp.tid()
     solve_particles_range(tid * chunk, wp.min(tid * chunk + chunk, total), num_particles, q, q_snap, q_prev, w_eff, attach, radius, box_of, sc_on, sc_r, sc_relax, max_nbr, nbr, nbr_count, num_static, sbox_pos, sbox_rot, sbox_he, num_boxes, box_pos, box_rot, box_he, box_kin, fric, tether_anchor, tether_len)
 
@@ -704,6 +708,7 @@ def shape_match(
     box_rot: wp.array(dtype=wp.mat33),
     box_kin: wp.array(dtype=wp.int32),
 ):
+    """Kernel wrapper of :func:`shape_match_box` (see there)."""
     shape_match_box(wp.tid(), q, rest, inv_mass, attach, rigid_start, rigid_count, num_particles, num_boxes, kin_weight, box_quat, box_pos, box_rot, box_kin)
 
 
@@ -764,110 +769,9 @@ def update_velocity(
     total: int,
     chunk: int,
 ):
+    """Kernel wrapper of :func:`update_velocity_range` (see there)."""
     tid = wp.tid()
     update_velocity_range(tid * chunk, wp.min(tid * chunk + chunk, total), q, q_prev, v, inv_mass, attach, fric, inv_dt, mu_s, mu_k, max_speed)
-
-
-# ----------------------------------------------------------------------------- fused CPU substep
-@wp.kernel
-def substep_world(
-    q: wp.array(dtype=wp.vec3),
-    q_prev: wp.array(dtype=wp.vec3),
-    q_snap: wp.array(dtype=wp.vec3),
-    v: wp.array(dtype=wp.vec3),
-    inv_mass: wp.array(dtype=float),
-    attach: wp.array(dtype=wp.int32),
-    attach_off: wp.array(dtype=wp.vec3),
-    pick_start: wp.array(dtype=wp.vec3),
-    pick_end: wp.array(dtype=wp.vec3),
-    fric: wp.array(dtype=wp.vec3),
-    w_eff: wp.array(dtype=float),
-    radius: wp.array(dtype=float),
-    box_of: wp.array(dtype=wp.int32),
-    obj: wp.array(dtype=wp.int32),
-    rest: wp.array(dtype=wp.vec3),
-    sc_r: wp.array(dtype=float),
-    tether_anchor: wp.array(dtype=wp.int32),
-    tether_len: wp.array(dtype=float),
-    con_ij: wp.array(dtype=wp.vec2i),
-    con_rest: wp.array(dtype=float),
-    color_off: wp.array(dtype=wp.int32),
-    color_cnt: wp.array(dtype=wp.int32),
-    color_k: wp.array(dtype=float),
-    num_colors: int,
-    num_cons: int,
-    grid_params: wp.array(dtype=float),
-    table_size: int,
-    max_nbr: int,
-    cell_start: wp.array(dtype=wp.int32),
-    cell_end: wp.array(dtype=wp.int32),
-    sorted_idx: wp.array(dtype=wp.int32),
-    sorted_q: wp.array(dtype=wp.vec3),
-    sorted_r: wp.array(dtype=float),
-    nbr: wp.array(dtype=wp.int32),
-    nbr_d: wp.array(dtype=float),
-    nbr_count: wp.array(dtype=wp.int32),
-    do_neighbors: int,
-    sc_on: int,
-    sc_relax: float,
-    num_static: int,
-    sbox_pos: wp.array(dtype=wp.vec3),
-    sbox_rot: wp.array(dtype=wp.mat33),
-    sbox_he: wp.array(dtype=wp.vec3),
-    num_boxes: int,
-    box_quat: wp.array(dtype=wp.quat),
-    box_pos: wp.array(dtype=wp.vec3),
-    box_rot: wp.array(dtype=wp.mat33),
-    box_he: wp.array(dtype=wp.vec3),
-    box_kin: wp.array(dtype=wp.int32),
-    rigid_start: wp.array(dtype=wp.int32),
-    rigid_count: wp.array(dtype=wp.int32),
-    kin_weight: float,
-    num_particles: int,
-    num_pickers: int,
-    alpha: float,
-    gravity: float,
-    dt: float,
-    damp: float,
-    max_speed: float,
-    iterations: int,
-    collision_passes: int,
-    inv_dt: float,
-    mu_s: float,
-    mu_k: float,
-):
-    """One whole substep of one world per thread (CPU path, ``dim = num_worlds``).
-
-    Runs exactly the operations of the per-launch pipeline (predict, neighbour lists, solver
-    iterations with colours / particle pass / shape matching, collision passes, velocity update)
-    in the same order for world ``w``; worlds are independent, so the results are bitwise those
-    of the launch-by-launch pipeline.  A world's data stays in cache for the whole substep and
-    one launch replaces ~100."""
-    w = wp.tid()
-    lo = w * num_particles
-    hi = lo + num_particles
-    predict_range(lo, hi, q, q_prev, v, inv_mass, attach, attach_off, pick_start, pick_end, fric, w_eff,
-                  num_particles, num_pickers, alpha, gravity, dt, damp, max_speed)
-    if do_neighbors != 0:
-        build_grid_world(w, q, sc_r, grid_params, num_particles, table_size, cell_start, cell_end,
-                         sorted_idx, sorted_q, sorted_r)
-        build_neighbors_range(lo, hi, q, sc_r, obj, rest, grid_params, num_particles, table_size, max_nbr,
-                              cell_start, cell_end, sorted_idx, sorted_q, sorted_r, nbr, nbr_d, nbr_count)
-    for it in range(iterations + collision_passes):
-        if it < iterations:
-            for c in range(num_colors):
-                solve_color_world(w, con_ij, con_rest, color_k[c], color_off[c], color_cnt[c], num_cons,
-                                  num_particles, q, w_eff)
-        for i in range(lo, hi):
-            q_snap[i] = q[i]
-        solve_particles_range(lo, hi, num_particles, q, q_snap, q_prev, w_eff, attach, radius, box_of, sc_on,
-                              sc_r, sc_relax, max_nbr, nbr, nbr_count, num_static, sbox_pos, sbox_rot, sbox_he,
-                              num_boxes, box_pos, box_rot, box_he, box_kin, fric, tether_anchor, tether_len)
-        if it < iterations:
-            for b in range(num_boxes):
-                shape_match_box(w * num_boxes + b, q, rest, inv_mass, attach, rigid_start, rigid_count,
-                                num_particles, num_boxes, kin_weight, box_quat, box_pos, box_rot, box_kin)
-    update_velocity_range(lo, hi, q, q_prev, v, inv_mass, attach, fric, inv_dt, mu_s, mu_k, max_speed)
 
 
 # ----------------------------------------------------------------------------- tethers

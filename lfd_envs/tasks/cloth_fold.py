@@ -60,7 +60,7 @@ class ClothFoldTask(ClothTask):
         return Workspace((-0.6, -0.6, 0.0), (0.6, 0.6, 0.7), margin=self.picker_radius)
 
     def pick_place_schedule(self) -> PickPlaceSchedule:
-        return PickPlaceSchedule(lift=0.02, arc_ratio=0.45, arc_max=0.5, hold_frames=16)
+        return PickPlaceSchedule(lift=0.02, arc_ratio=0.45, arc_max=0.5, carry_frames=48, hold_frames=8)
 
     def camera(self):
         from lfd_envs.render import Camera
@@ -91,8 +91,9 @@ class ClothFoldTask(ClothTask):
 
     # ------------------------------------------------------------------ for experts
     def fold_pairs(self, num: int) -> tuple[np.ndarray, np.ndarray]:
-        """Particle indices of ``num`` points on the left edge and of their mirror partners
-        on the right edge (corners first), ``(num,)`` each."""
+        """Particle indices of ``num`` points evenly spread along the left edge (both corners
+        when ``num >= 2``, the bottom corner for 1) and of their mirror partners on the right
+        edge, ``(num,)`` each."""
         n = self.resolution
         rows = np.round(np.linspace(0, n - 1, max(num, 2))).astype(int)[:num] if num > 1 else np.array([0])
         return self.grid_index(rows, 0), self.grid_index(rows, n - 1)

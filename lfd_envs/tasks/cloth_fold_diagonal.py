@@ -73,7 +73,7 @@ class ClothFoldDiagonalTask(ClothTask):
         return Workspace((-0.6, -0.6, 0.0), (0.6, 0.6, 0.7), margin=self.picker_radius)
 
     def pick_place_schedule(self) -> PickPlaceSchedule:
-        return PickPlaceSchedule(lift=0.02, arc_ratio=0.45, arc_max=0.6, carry_frames=64)
+        return PickPlaceSchedule(lift=0.02, arc_ratio=0.45, arc_max=0.6, carry_frames=56, hold_frames=8)
 
     def camera(self):
         from lfd_envs.render import Camera

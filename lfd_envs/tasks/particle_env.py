@@ -108,7 +108,7 @@ class ParticleEnv(_SpacesMixin, LfdEnv):
         device = _check_device(device)
         task = _make_task(self.task_class, {**self.task_options, **task_options})
         self.task_name = task.name
-        self._init_contract(obs_mode=obs_mode or getattr(task, "default_obs_mode", "state"),
+        self._init_contract(obs_mode=obs_mode or task.default_obs_mode,
                             image_size=image_size, render_mode=render_mode,
                             horizon=_horizon(task, action_mode, horizon))
         self.task = task
@@ -220,7 +220,7 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
         self.task = task
         self.num_envs = int(num_envs)
         self.action_mode = action_mode
-        self.obs_mode = check_choice("obs_mode", obs_mode or getattr(task, "default_obs_mode", "state"),
+        self.obs_mode = check_choice("obs_mode", obs_mode or task.default_obs_mode,
                                      PARTICLE_OBS_MODES)
         self.image_size = check_image_size(image_size)
         if render_mode is not None:

@@ -69,6 +69,8 @@ class ParticleTask(ABC):
     name: ClassVar[str]
     #: default number of pickers (SPEC §4.4 table)
     default_num_pickers: ClassVar[int] = 1
+    #: default observation mode of the env
+    default_obs_mode: ClassVar[str] = "state"
     #: default horizons per action mode
     horizons: ClassVar[dict[str, int]] = {"delta": 100, "pick_place": 3}
     #: default resolution and the allowed range

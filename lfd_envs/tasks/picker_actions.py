@@ -153,9 +153,9 @@ class PickPlaceSchedule:
     lift: float = 0.05
     arc_ratio: float = 0.0
     arc_max: float = 0.4
-    free_speed: float = 0.03
+    free_speed: float = 0.04
     carry_speed: float = 0.015
-    approach_frames: int = 24
+    approach_frames: int = 16
     descend_frames: int = 8
     grasp_frames: int = 1
     lift_frames: int = 8
@@ -164,7 +164,7 @@ class PickPlaceSchedule:
     hold_frames: int = 0
     release_frames: int = 1
     retreat_frames: int = 4
-    settle_frames: int = 10
+    settle_frames: int = 6
 
     @property
     def total_frames(self) -> int:

@@ -136,7 +136,7 @@ class ThreeBoxesTask(ParticleTask):
     def camera(self):
         from lfd_envs.render import Camera
 
-        return Camera(position=(0.6, -1.3, 0.8), look_at=(0.6, 0.0, 0.1), fov_y_deg=45.0)
+        return Camera(position=(0.55, -1.6, 0.95), look_at=(0.55, 0.0, 0.1), fov_y_deg=45.0)
 
     # ------------------------------------------------------------------ variants
     @property
