@@ -8,7 +8,10 @@ scripted or recurrent agents) and ``needs_training = False`` (skip ``learn``).
 
 from __future__ import annotations
 
+import hashlib
 import importlib
+import json
+from pathlib import Path
 from typing import Any, Callable
 
 import gymnasium as gym
@@ -96,16 +99,46 @@ def _lfd_agent(class_name: str, module: str = "lfd_agents") -> AgentFactory:
     return factory
 
 
+DEMO_CACHE = Path(__file__).resolve().parent / "results" / "_demos"
+
+
+def demonstrations_for(env: gym.Env, episodes: int, seed: int = 0) -> Path:
+    """Expert demonstrations (Minari) for the env's id and kwargs, collected once and cached."""
+    from lfd_envs import datasets
+
+    spec = env.spec
+    if spec is None:
+        raise ValueError("demonstration agents need an env made with gymnasium.make (env.spec is None)")
+    kwargs = {k: v for k, v in spec.kwargs.items() if k != "render_mode"}
+    key = hashlib.sha256(json.dumps([spec.id, kwargs, episodes, seed], sort_keys=True, default=str).encode())
+    root = DEMO_CACHE / key.hexdigest()[:16]
+    found = sorted(p.parent for p in root.rglob("data")) if root.exists() else []
+    if found:
+        return found[0]
+    return datasets.collect(spec.id, episodes, root, env_kwargs=kwargs, seed=seed + 500_000, progress=False)
+
+
+def _lfd_demo_agent(class_name: str) -> AgentFactory:
+    def factory(env: gym.Env, seed: int = 0, demo_episodes: int = 20, **kwargs: Any):
+        cls = getattr(importlib.import_module("lfd_agents"), class_name)
+        demos = demonstrations_for(env, int(demo_episodes))
+        kwargs.setdefault("device", "cpu")
+        return cls(_policy_name(env), env, demonstrations=str(demos), seed=seed, **kwargs)
+
+    factory.__doc__ = f"lfd_agents.{class_name} with `demo_episodes` expert demonstrations (cached)."
+    return factory
+
+
 BUILTIN_AGENTS: dict[str, AgentFactory] = {
     "random": lambda env, seed=0, **kw: RandomAgent(env, seed),
     "expert": lambda env, seed=0, **kw: ExpertAgent(env, seed, **kw),
     "sac": _sb3("SAC"),
     "td3": _sb3("TD3"),
     "ppo": _sb3("PPO"),
-    "dmfd": _lfd_agent("DMfD"),
-    "sac_lfd": _lfd_agent("SACLfD"),
-    "bc": _lfd_agent("BC"),
-    "awac": _lfd_agent("AWAC"),
+    "dmfd": _lfd_demo_agent("DMfD"),
+    "sac_lfd": _lfd_demo_agent("SACLfD"),
+    "bc": _lfd_demo_agent("BC"),
+    "awac": _lfd_demo_agent("AWAC"),
     "mopa_sac": _lfd_agent("MoPASAC", "lfd_agents.mopa"),
 }
 

@@ -89,7 +89,8 @@ def agent_rows(env_id: str = "ClothFoldDiagonalPinned-v0", obs_modes: Sequence[s
         t0 = time.perf_counter()
         model.learn(steps, reset_num_timesteps=False)
         train_rate = _rate(steps, time.perf_counter() - t0)
-        rows.append({"agent": "DMfD", "env": env_id, "obs": obs_mode if obs_mode == "state" else f"{obs_mode} 32x32",
+        obs_name = obs_mode if obs_mode == "state" else f"{obs_mode} 32x32"
+        rows.append({"agent": "DMfD", "env": env_id, "obs": obs_name,
                      "device": device, "net": "-".join(map(str, net_arch)), "batch": batch_size,
                      "env_steps_per_s": round(env_rate, 1), "grad_steps_per_s": round(grad_rate, 1),
                      "train_steps_per_s": round(train_rate, 1)})

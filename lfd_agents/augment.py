@@ -38,7 +38,8 @@ def random_shift(images: th.Tensor, pad: int = 2, generator: th.Generator | None
 def image_keys(space: spaces.Space) -> list[str | None]:
     """Image entries of an observation space: ``[None]`` for an image Box, Dict keys for a Dict."""
     if isinstance(space, spaces.Dict):
-        return [k for k, s in space.spaces.items() if len(s.shape or ()) == 3 and is_image_space(s, check_channels=False)]
+        return [k for k, s in space.spaces.items()
+                if len(s.shape or ()) == 3 and is_image_space(s, check_channels=False)]
     if isinstance(space, spaces.Box) and len(space.shape) == 3 and is_image_space(space, check_channels=False):
         return [None]
     return []

@@ -373,8 +373,8 @@ class DMfD(OffPolicyAlgorithm):
             dist = self.actor.distribution(data.next_observations)
             next_actions = dist.sample()
             next_q = self._min_q(self.critic_target, data.next_observations, next_actions)
-            target = td_target(self.reward_scale * data.rewards.flatten(), data.dones.flatten(), next_q, log_prob(dist, next_actions),
-                               gamma=self.gamma, target_ent_coef=self.target_ent_coef)
+            target = td_target(self.reward_scale * data.rewards.flatten(), data.dones.flatten(), next_q,
+                               log_prob(dist, next_actions), gamma=self.gamma, target_ent_coef=self.target_ent_coef)
         qs = self.critic(data.observations, data.actions)
         loss = sum(F.mse_loss(q.flatten(), target) for q in qs)
         return {"loss": loss, "target": target, "q": th.cat(qs, dim=1).detach()}

@@ -52,6 +52,7 @@ from torch import nn
 from lfd_agents.augment import random_shift
 
 DEFAULT_CAMERAS = ("workspace", "wrist")
+READOUT = "mean"
 
 
 @contextlib.contextmanager
@@ -169,7 +170,8 @@ class RT1Policy(nn.Module):
         tokens = self.tokenizer(images.flatten(0, 2), cond)  # (B·h·c, k, d)
         tokens = tokens.reshape(b, h * c * tokens.shape[1], -1)
         tokens = th.cat([self.instruction_token(emb)[:, None, :], tokens], dim=1) + self.position
-        out = self.norm(self.transformer(tokens).mean(dim=1))
+        encoded = self.transformer(tokens)
+        out = self.norm(encoded[:, 0] if READOUT == "cls" else encoded.mean(dim=1))
         return self.head(out).view(b, 3, self.n_bins)
 
 
@@ -474,8 +476,9 @@ class NistBC:
 
 # ---------------------------------------------------------------------- evaluation and factories
 def evaluate(agent: Any, env: gym.Env, episodes: int, seed: int = 0, split: str = "eval") -> dict[str, float]:
-    """Success rate and mean final normalised performance of ``agent`` on ``episodes`` variants."""
-    successes, finals = [], []
+    """Success rate, mean final p̂ and mean final lateral distance (m) of the peg tip to the hole
+    axis of ``agent`` on variants ``0 .. episodes-1`` of ``split``."""
+    successes, finals, lateral = [], [], []
     for k in range(int(episodes)):
         obs, info = env.reset(seed=seed + k, options={"split": split, "variant": k})
         if hasattr(agent, "reset"):
@@ -487,7 +490,10 @@ def evaluate(agent: Any, env: gym.Env, episodes: int, seed: int = 0, split: str 
             done = terminated or truncated
         successes.append(bool(info.get("is_success", False)))
         finals.append(float(info["normalized_performance"]))
-    return {"success_rate": float(np.mean(successes)), "mean_normalized_performance": float(np.mean(finals))}
+        e = env.unwrapped
+        lateral.append(float(np.linalg.norm(e.tip_position[:2] - e.hole_top[:2])))
+    return {"success_rate": float(np.mean(successes)), "mean_normalized_performance": float(np.mean(finals)),
+            "mean_lateral_error": float(np.mean(lateral))}
 
 
 def nist_bc(env: gym.Env, seed: int = 0, **kwargs: Any) -> NistBC:

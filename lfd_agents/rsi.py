@@ -99,7 +99,8 @@ class ReferenceStateInit(gym.Wrapper):
         for key, value in state.items():
             spec = self._template.get(key)
             arr = np.asarray(value)
-            out[key] = arr.astype(spec[0], copy=False).reshape(spec[1]) if spec and arr.size == int(np.prod(spec[1])) else arr
+            fits = spec is not None and arr.size == int(np.prod(spec[1]))
+            out[key] = arr.astype(spec[0], copy=False).reshape(spec[1]) if fits else arr
         return out
 
     # ------------------------------------------------------------------ gymnasium API

@@ -30,8 +30,8 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--workdir", required=True)
     r.add_argument("--stage", choices=STAGES, default="student")
     r.add_argument("--backend", choices=["learned", "simulator"], default="learned")
-    r.add_argument("--random-episodes", type=int, default=100)
-    r.add_argument("--epochs", type=int, default=100)
+    r.add_argument("--random-transitions", type=int, default=300)
+    r.add_argument("--epochs", type=int, default=60)
     r.add_argument("--population", type=int, default=200)
     r.add_argument("--iterations", type=int, default=2)
     r.add_argument("--max-demos", type=int)
@@ -45,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
                                             "obs_mode": "particles"})
         print(path)
         return 0
-    cfg = MAILConfig(backend=args.backend, random_episodes=args.random_episodes, dynamics_epochs=args.epochs,
+    cfg = MAILConfig(backend=args.backend, random_transitions=args.random_transitions, dynamics_epochs=args.epochs,
                      cem=CEMConfig(population=args.population, iterations=args.iterations))
     mail = MAIL(args.env, args.teacher, args.workdir, {"num_pickers": args.student_pickers}, cfg)
     stage = STAGES.index(args.stage)

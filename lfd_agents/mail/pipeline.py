@@ -3,7 +3,8 @@
 Stages (each saves its output in ``workdir`` and is skipped when that output exists, so a run
 can be resumed or a stage re-run by deleting its output):
 
-1. ``random_data``  — random pick-and-place episodes of the *student* (particles observations);
+1. ``random_data``  — random pick-and-place transitions of the *student*, collected in batched
+   worlds (``random.npz``, see :mod:`lfd_agents.mail.data`);
 2. ``dynamics``     — train the CNN-LSTM particle dynamics model on them (``dynamics.pt``);
 3. ``convert``      — for every teacher demonstration, CEM finds the student action sequence
    whose predicted final object state matches the teacher's final state; the sequence is
@@ -29,7 +30,8 @@ import numpy as np
 
 from lfd_agents.mail.backends import LearnedBackend, SimulatorBackend, particles_of
 from lfd_agents.mail.cem import CEM, CEMConfig
-from lfd_agents.mail.dynamics import DynamicsConfig, LearnedDynamics, transitions_from_episodes
+from lfd_agents.mail.data import collect_transitions, load_transitions, save_transitions
+from lfd_agents.mail.dynamics import DynamicsConfig, LearnedDynamics
 
 STAGES = ("random_data", "dynamics", "convert", "student")
 
@@ -39,8 +41,11 @@ class MAILConfig:
     """Settings of a MAIL run (defaults sized for a CPU; the paper's in the thesis Table D.8)."""
 
     backend: str = "learned"  #: "learned" or "simulator"
-    random_episodes: int = 100
-    dynamics_epochs: int = 100
+    random_transitions: int = 300  #: MAIL: 60k (10k episodes of 6 steps)
+    random_worlds: int = 16  #: batched worlds while collecting them
+    explore: float = 0.25  #: fraction of random picks perturbed by Gaussian noise (missed grasps)
+    uniform: float = 0.1  #: fraction of fully uniform random actions
+    dynamics_epochs: int = 60
     dynamics: DynamicsConfig = field(default_factory=DynamicsConfig)
     cem: CEMConfig = field(default_factory=CEMConfig)
     student_steps: int | None = None  #: student actions per teacher demo (default: student horizon)
@@ -82,7 +87,7 @@ class MAIL:
     # ------------------------------------------------------------------ paths
     @property
     def random_path(self) -> Path:
-        return self.workdir / "random"
+        return self.workdir / "random.npz"
 
     @property
     def dynamics_path(self) -> Path:
@@ -102,37 +107,31 @@ class MAIL:
 
     # ------------------------------------------------------------------ stage 1
     def random_data(self) -> Path:
-        """Random pick-and-place episodes of the student (the dynamics model's training data)."""
-        from lfd_envs import datasets
-
-        existing = self._dataset_dir(self.random_path)
-        if existing is not None:
-            return existing
+        """Random pick-and-place transitions of the student (the dynamics model's training data)."""
+        if self.random_path.exists():
+            return self.random_path
+        c = self.config
         t0 = time.perf_counter()
-        policy = "random_pick_place" if "random_pick_place" in datasets.POLICIES else "random"
-        path = datasets.collect(self.student_env_id, self.config.random_episodes, self.random_path,
-                                env_kwargs={**self.student_kwargs, "obs_mode": "particles"}, policy=policy,
-                                seed=self.config.seed + 1_000_000, name="random", progress=False)
+        data = collect_transitions(self.student_env_id, self.student_kwargs, c.random_transitions,
+                                   num_worlds=c.random_worlds, seed=c.seed + 1_000_000, explore=c.explore,
+                                   uniform=c.uniform)
+        save_transitions(data, self.random_path)
         self.timings["random_data"] = time.perf_counter() - t0
-        return path
+        return self.random_path
 
     # ------------------------------------------------------------------ stage 2
     def dynamics(self) -> LearnedDynamics:
-        """Train (or load) the particle dynamics model."""
-        from lfd_envs import datasets
-
+        """Train (or load) the particle dynamics model on the random transitions."""
         if self.dynamics_path.exists():
             return LearnedDynamics.load(self.dynamics_path)
-        ds = datasets.load(self.random_data())
-        episodes = [{"observations": ep.observations, "actions": ep.actions} for ep in ds.iterate_episodes()]
-        x, a, x_next = transitions_from_episodes(episodes, self.num_particles)
-        cfg = DynamicsConfig(**asdict(self.config.dynamics))
-        cfg.action_dim = a.shape[1]
-        model = LearnedDynamics(self.num_particles, cfg, seed=self.config.seed)
+        data = load_transitions(self.random_data())
+        model = LearnedDynamics.for_env(self.env, self.config.dynamics, seed=self.config.seed)
         t0 = time.perf_counter()
-        model.fit(x, a, x_next, epochs=self.config.dynamics_epochs)
+        model.fit(data["x"], data["actions"], data["x_next"], epochs=self.config.dynamics_epochs)
         self.timings["dynamics"] = time.perf_counter() - t0
-        model.save(self.dynamics_path)
+        tmp = self.dynamics_path.with_suffix(".partial")
+        model.save(tmp)
+        tmp.replace(self.dynamics_path)
         return model
 
     # ------------------------------------------------------------------ stage 3

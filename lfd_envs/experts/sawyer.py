@@ -6,8 +6,10 @@ Every expert follows the same two phases, using only the env's planning interfac
 1. **Plan.** Inverse kinematics (:class:`~lfd_envs.mujoco.sawyer.SawyerIK`, MuJoCo Jacobians,
    several seeds) gives a valid pre-contact configuration; a joint path to it comes from OMPL
    RRT-Connect (``lfd_agents.mopa.planner.OMPLPlanner``: straight line first when it is free)
-   or, when OMPL is unavailable, from :func:`lfd_envs.mujoco.planning.plan_path`. The path is
-   followed waypoint by waypoint with actions ``(waypoint − q) / Δq_step``.
+   or, when OMPL is unavailable, from :func:`lfd_envs.mujoco.planning.plan_path`, with a
+   stricter validity check (:class:`ClearanceChecker`: 1.5 cm from obstacles, so the arm does
+   not drag along walls it grazes). The path is followed waypoint by waypoint (steps of
+   0.03 rad, actions compensating the servos' per-joint lag).
 2. **Contact.** Small direct actions from differential IK on the grip site (or the leg tip):
    Push steers the cube to the goal; Lift descends, closes the gripper and lifts; Assembly
    lowers the leg into the hole with lateral correction.
@@ -94,9 +96,8 @@ def make_planner(env: Any, time_limit: float = 2.0, seed: int = 0, is_valid: Any
         from lfd_envs.mujoco.planning import plan_path
 
         rng = np.random.default_rng(seed)
-        if is_valid is not None:
-            raise ImportError("a custom validity checker needs OMPL (lfd_agents.mopa.planner)")
-        return lambda q0, q1: plan_path(base, q1, q0, rng=rng)
+        checked = _WithValidity(base, check)
+        return lambda q0, q1: plan_path(checked, q1, q0, rng=rng)
     planner = OMPLPlanner(check, base.joint_limits, dq_step=base.dq_step, time_limit=time_limit,
                           range=0.3, seed=seed)
 
@@ -106,6 +107,17 @@ def make_planner(env: Any, time_limit: float = 2.0, seed: int = 0, is_valid: Any
 
     plan.planner = planner  # type: ignore[attr-defined]
     return plan
+
+
+class _WithValidity:
+    """The env seen through another validity function (for :func:`~lfd_envs.mujoco.planning.plan_path`)."""
+
+    def __init__(self, env: Any, is_valid: Any) -> None:
+        self._env, self.is_valid = env, is_valid
+        self._is_valid_unchecked = lambda q: bool(is_valid(q))  # what plan_path checks edges with
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._env, name)
 
 
 class _SawyerExpert:
@@ -132,11 +144,12 @@ class _SawyerExpert:
         self._servo_fraction = 1.0 - np.exp(-kp / np.maximum(damping, 1e-6) * b.dt)
         self.checker = ClearanceChecker(env, self.clearance, self.clearance_ignore)
         self._plan = make_planner(env, planner_time, seed, is_valid=self.checker)
-        self._rng = np.random.default_rng(seed)
+        self.seed = int(seed)
         self.reset()
 
     def reset(self) -> None:
         """Forget the current plan (call after every ``env.reset``)."""
+        self._rng = np.random.default_rng(self.seed)  # IK seeds: the same in every episode
         self.phase = "plan"
         self.path: np.ndarray | None = None
         self.index = 0

@@ -385,7 +385,8 @@ class PlanningMixin:
                 self._path_reference = arr[i]
                 action = np.clip((arr[i + 1] - arr[i]) / self.dq_step, -1.0, 1.0)
                 extra = grip if i == len(arr) - 2 else np.zeros_like(grip)
-                obs, reward, terminated, truncated, info = self.step(np.concatenate([action, extra]))  # type: ignore[attr-defined]
+                step = self.step  # type: ignore[attr-defined]
+                obs, reward, terminated, truncated, info = step(np.concatenate([action, extra]))
                 result.discounted_return += float(discount) ** i * reward
                 result.rewards.append(float(reward))
                 result.observations.append(obs)

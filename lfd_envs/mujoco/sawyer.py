@@ -79,7 +79,7 @@ class SawyerObstacleEnv(PlanningMixin, MujocoEnv):
             self._scene_option.geomgroup[3] = 1
         self._init_mujoco(
             sm.load_model(self._scene_xml()), arm_joint_names=sm.ARM_JOINTS, dq_step=DQ_STEP,
-            frame_skip=FRAME_SKIP, timestep=TIMESTEP, gravity_compensation="gravcomp",  # kp set in the MJCF
+            frame_skip=FRAME_SKIP, timestep=TIMESTEP, servo_kp=sm.ARM_KP, gravity_compensation="gravcomp",
             init_arm_qpos=self.init_qpos, init_noise="normal", init_noise_scale=0.02,
             n_extra_actions=1 if self.gripper_action else 0, goal_conditioned=goal_conditioned)
         m = self.model

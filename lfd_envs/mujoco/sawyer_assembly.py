@@ -65,7 +65,7 @@ def _furniture_xml() -> str:
     ])
     yaw = np.radians(FURNITURE_YAW_DEG)
     return (
-        f'<body name="furniture" pos="{sm._fmt(FURNITURE_POS)}" quat="{np.cos(yaw / 2):.6f} 0 0 {np.sin(yaw / 2):.6f}">'
+        f'<body name="furniture" pos="{sm.fmt(FURNITURE_POS)}" quat="{np.cos(yaw / 2):.6f} 0 0 {np.sin(yaw / 2):.6f}">'
         '<freejoint name="furniture_joint"/>'
         + sm.box("furniture_top", (0, 0, top / 2), (PLATE_HALF, PLATE_HALF, top / 2), cls="furniture")
         + legs + socket
@@ -90,7 +90,7 @@ def _held_leg_xml() -> str:
 
 
 @functools.lru_cache(maxsize=None)
-def scene_xml() -> str:
+def scene_xml(robot_meshes: bool = False) -> str:
     """MJCF of the assembly scene."""
     scene = sm.work_table((0.66, 0.0, 0.41), (0.4, 0.6, 0.41)) + _furniture_xml()
     finger_bodies = ("gripper0_right_l_finger", "gripper0_right_r_finger",
@@ -98,8 +98,9 @@ def scene_xml() -> str:
     camera = lookat_camera("task_cam", (1.75, 0.8, 1.85), (0.6, -0.05, 1.0), fovy=50)
     furniture = ('<default class="furniture"><geom rgba="0.93 0.86 0.7 1" density="300" '
                  'friction="1 0.005 0.0001"/></default>')
-    return sm.compose_scene_xml("sawyer_assembly_obstacle", scene, camera, attach_to_eef=_held_leg_xml(),
-                                excludes=[("leg", f) for f in finger_bodies], defaults=furniture)
+    return sm.compose_scene_xml("sawyer_assembly_obstacle", scene, camera, robot_meshes=robot_meshes,
+                                attach_to_eef=_held_leg_xml(), excludes=[("leg", f) for f in finger_bodies],
+                                defaults=furniture)
 
 
 class SawyerAssemblyObstacleEnv(SawyerObstacleEnv):
@@ -134,7 +135,7 @@ class SawyerAssemblyObstacleEnv(SawyerObstacleEnv):
         self._finish_init()
 
     def _scene_xml(self) -> str:
-        return scene_xml()
+        return scene_xml(robot_meshes=self.robot_visual == "mesh")
 
     def _setup_variant(self, rng: np.random.Generator) -> None:
         self._reset_robot()

@@ -53,7 +53,7 @@ FINGER_SPAN = sm.FINGER_OPEN - sm.FINGER_CLOSED
 
 
 @functools.lru_cache(maxsize=None)
-def scene_xml() -> str:
+def scene_xml(robot_meshes: bool = False) -> str:
     """MJCF of the lift scene."""
     h = (BIN_WALL_TOP - BIN_FLOOR_Z) / 2
     zc = BIN_FLOOR_Z + h
@@ -68,14 +68,14 @@ def scene_xml() -> str:
     scene = (
         sm.work_table((0.66, 0.0, 0.40), (0.4, 0.73, 0.41))
         + f'<body name="bin" pos="{BIN_CENTER[0]} {BIN_CENTER[1]} 0">{walls}</body>'
-        + f'<body name="can" pos="{sm._fmt(CAN_START)}"><freejoint name="can_joint"/>'
+        + f'<body name="can" pos="{sm.fmt(CAN_START)}"><freejoint name="can_joint"/>'
         f'<geom name="can" type="cylinder" size="{CAN_RADIUS} {CAN_HALF_HEIGHT}" density="100" '
         'friction="0.95 0.3 0.1" condim="4" solimp="0.95 0.99 0.001" rgba="0.8 0.15 0.15 1"/></body>'
         + f'<site name="target" pos="{BIN_CENTER[0]} {BIN_CENTER[1]} {TARGET_Z}" size="0.015" '
         'rgba="0.2 0.85 0.2 0.4"/>'
     )
     camera = lookat_camera("task_cam", (1.55, 0.45, 1.75), (0.55, -0.25, 0.95), fovy=45)
-    return sm.compose_scene_xml("sawyer_lift_obstacle", scene, camera, impratio=10.0)
+    return sm.compose_scene_xml("sawyer_lift_obstacle", scene, camera, robot_meshes=robot_meshes, impratio=10.0)
 
 
 class SawyerLiftObstacleEnv(SawyerObstacleEnv):
@@ -114,7 +114,7 @@ class SawyerLiftObstacleEnv(SawyerObstacleEnv):
         self._finish_init()
 
     def _scene_xml(self) -> str:
-        return scene_xml()
+        return scene_xml(robot_meshes=self.robot_visual == "mesh")
 
     # ------------------------------------------------------------------ variant and control
     def _setup_variant(self, rng: np.random.Generator) -> None:

@@ -28,7 +28,6 @@ from __future__ import annotations
 import functools
 from typing import ClassVar
 
-import mujoco
 import numpy as np
 
 from lfd_envs.mujoco import sawyer_models as sm
@@ -45,7 +44,7 @@ INIT_QPOS = (0.000457, -0.114, 0.0321, -0.00712, 0.0303, -0.0302, -0.00994)
 
 
 @functools.lru_cache(maxsize=None)
-def scene_xml() -> str:
+def scene_xml(robot_meshes: bool = False) -> str:
     """MJCF of the push scene."""
     t = TUNNEL
     hl, hw, wall = t["half_length"], t["half_width"], 0.01
@@ -60,14 +59,14 @@ def scene_xml() -> str:
     scene = (
         sm.work_table((1.05, 0.0, 0.80), (0.4, 0.4, 0.02))
         + f'<body name="tunnel" pos="{t["x"]} 0 0">{tunnel}</body>'
-        + f'<body name="cube" pos="{sm._fmt(CUBE_START)}"><freejoint name="cube_joint"/>'
+        + f'<body name="cube" pos="{sm.fmt(CUBE_START)}"><freejoint name="cube_joint"/>'
         f'<geom name="cube" type="box" size="{CUBE_HALF} {CUBE_HALF} {CUBE_HALF}" density="300" '
         'friction="0.95 0.3 0.1" condim="4" rgba="0.85 0.2 0.2 1"/></body>'
-        + f'<body name="goal" mocap="true" pos="{sm._fmt(GOAL_NOMINAL)}">'
+        + f'<body name="goal" mocap="true" pos="{sm.fmt(GOAL_NOMINAL)}">'
         '<geom name="goal" type="sphere" size="0.025" contype="0" conaffinity="0" rgba="0.2 0.85 0.2 0.5"/></body>'
     )
     camera = lookat_camera("task_cam", (0.15, 0.75, 1.55), (0.95, 0.0, 0.92), fovy=50)
-    return sm.compose_scene_xml("sawyer_push_obstacle", scene, camera)
+    return sm.compose_scene_xml("sawyer_push_obstacle", scene, camera, robot_meshes=robot_meshes)
 
 
 class SawyerPushObstacleEnv(SawyerObstacleEnv):
@@ -101,7 +100,7 @@ class SawyerPushObstacleEnv(SawyerObstacleEnv):
         self._finish_init()
 
     def _scene_xml(self) -> str:
-        return scene_xml()
+        return scene_xml(robot_meshes=self.robot_visual == "mesh")
 
     # ------------------------------------------------------------------ variant
     def _setup_variant(self, rng: np.random.Generator) -> None:
