@@ -194,3 +194,32 @@ def test_expert_beats_random_by_a_wide_margin(task, envs):
         ret_r, info_r = rollout(env, lambda o: rng.uniform(-1, 1, env.action_space.shape), seed)
         assert info_e["is_success"] and not info_r["is_success"]
         assert ret_e > ret_r + 100.0
+
+
+def test_lift_planning_carries_the_grasped_can(envs):
+    from lfd_envs.mujoco.sawyer import SawyerIK
+
+    env = envs["lift"]
+    expert = make_expert(env)
+    obs, _ = env.reset(seed=0, options={"split": "eval", "variant": 0})
+    expert.reset()
+    assert not env.grasped
+    can0 = env.can_pos()
+    while not (env.grasped and env.can_pos()[2] > 1.0):
+        obs, _, term, trunc, _ = env.step(expert.predict(obs)[0])
+        assert not (term or trunc)
+    q = env.arm_qpos()
+    assert env.is_valid(q)
+    ik = SawyerIK(env)
+    grip, rot = ik.site_pose(q)
+    first_hits = []
+    for direction in ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0)):
+        for dist in np.arange(0.02, 0.25, 0.01):
+            q_moved, err = ik.solve(grip + dist * np.array(direction), rot[:, 2], q)
+            pairs = env.colliding_pairs(q_moved) if err < 2e-3 else []
+            if pairs:
+                first_hits.append({a for a, b, _ in pairs} | {b for a, b, _ in pairs})
+                break
+    # the can, carried with the gripper, is what hits a bin wall first in some direction
+    assert any("can" in names for names in first_hits)
+    assert np.linalg.norm(can0 - env.can_pos()) > 0.1  # (it really was lifted)

@@ -51,6 +51,10 @@ class DynamicsConfig:
     #: torch intra-op threads while training/predicting (1 is fastest for these small tensors
     #: on a shared CPU: more threads oversubscribe and run ~20x slower); 0 keeps torch's setting
     num_threads: int = 1
+    #: carry the LSTM state across the steps of a rollout. MAIL trains on length-1 sequences
+    #: (as :meth:`LearnedDynamics.fit` does), so a carried state is one the model never saw in
+    #: training; by default every step starts from the zero state (measured: better CEM plans)
+    carry_hidden: bool = False
     #: workspace box (metres) of the normalised actions; positions are normalised with it too
     workspace_low: tuple[float, float, float] = (-1.0, -1.0, -1.0)
     workspace_high: tuple[float, float, float] = (1.0, 1.0, 1.0)
@@ -285,6 +289,8 @@ class LearnedDynamics:
             for t in range(horizon):
                 disp, hidden = self.model(cur[:, None], acts[:, t:t + 1], hidden)
                 cur = cur + disp[:, 0]
+                if not self.config.carry_hidden:
+                    hidden = None
         return cur.double().cpu().numpy() * self._half + self._centre
 
     def predict_all(self, x0: np.ndarray, action_seq: np.ndarray) -> np.ndarray:
