@@ -140,6 +140,7 @@ BUILTIN_AGENTS: dict[str, AgentFactory] = {
     "bc": _lfd_demo_agent("BC"),
     "awac": _lfd_demo_agent("AWAC"),
     "mopa_sac": _lfd_agent("MoPASAC", "lfd_agents.mopa"),
+    "mail": _lfd_agent("MAILAgent", "lfd_agents.mail"),
 }
 
 

@@ -579,6 +579,70 @@ def particle_env_rows(device: str = "cpu", repeats: int = 3,
 
 
 # ---------------------------------------------------------------------------- main
+# ---------------------------------------------------------------------------- NIST board
+def _nist_steps_per_s(steps: int, seed: int, press: bool = False, **env_kwargs: Any) -> tuple[float, float]:
+    """Median (wall, CPU) NistBoardInsert-v0 env steps/s: random actions, or pressing on the board."""
+    import numpy as np
+
+    from lfd_envs.mujoco.nist import NistBoardInsertEnv
+
+    env = NistBoardInsertEnv(**env_kwargs)
+    rng = np.random.default_rng(seed)
+    env.reset(seed=seed)
+    down = np.array([0.0, 0.0, -1.0], np.float32)
+
+    def run() -> None:
+        for _ in range(steps):
+            action = down if press else rng.uniform(-1, 1, 3).astype(np.float32)
+            _, _, term, trunc, _ = env.step(action)
+            if term or trunc:
+                env.reset()
+
+    if press:  # start on the board, beside the hole, so every physics step has contacts
+        env.reset(seed=seed, options={"instruction": "insert medium peg in large hole"})
+        hole = env.hole_top
+        env.data.qpos[:3] = hole + [0.006, 0.0, 0.001]
+        env._target = env.data.qpos[:3].copy()
+        env.data.ctrl[:] = env._target
+    sec, cpu = _median_seconds(run, 3, budget_s=3.0)
+    env.close()
+    return steps / sec, steps / cpu
+
+
+def nist_rows(device: str = "cpu", steps: int = 100, seed: int = 0) -> list[dict[str, Any]]:
+    """Throughput of ``NistBoardInsert-v0`` (one env step = 20 physics steps of 2 ms).
+
+    Rows: ``obs_mode="state"`` with random actions (mostly free motion) and pressed on the board
+    (contacts every physics step), reported as env steps/s and physics steps/s; image
+    observations with both cameras (workspace + wrist) at the default 128×160 and at the
+    thesis' 512×640, headless MuJoCo rendering (``MUJOCO_GL``, no multisampling). Median of
+    repeats after a warm-up; ``*_cpu`` columns use the calling thread's CPU time (rendering
+    on software GL also uses other threads, so image rows are wall time only). ``device`` is unused.
+    """
+    from lfd_envs.mujoco.nist import FRAME_SKIP
+
+    rows = []
+    cases = [
+        ("state, random actions", dict(obs_mode="state"), steps * 5, False),
+        ("state, pressed on board", dict(obs_mode="state"), steps * 5, True),
+        ("2 cameras 128x160", dict(obs_mode="image", image_size=(128, 160)), steps, False),
+        ("2 cameras 512x640", dict(obs_mode="image", image_size=(512, 640)), max(10, steps // 4), False),
+    ]
+    for label, kwargs, n, press in cases:
+        try:
+            wall, cpu = _nist_steps_per_s(n, seed, press=press, **kwargs)
+        except Exception as exc:  # e.g. no OpenGL: keep the other rows
+            print(f"# nist: skipping {label}: {type(exc).__name__}: {exc}")
+            continue
+        row = {"section": "nist", "env": "NistBoardInsert-v0", "case": label, "env_steps_per_s": round(wall, 1),
+               "physics_steps_per_s": round(wall * FRAME_SKIP, 0)}
+        if kwargs["obs_mode"] == "state":
+            row["env_cpu_steps_per_s"] = round(cpu, 1)
+        row["gl"] = os.environ.get("MUJOCO_GL", "")
+        rows.append(row)
+    return rows
+
+
 SECTIONS: dict[str, Callable[..., list[dict[str, Any]]]] = {
     "particle_envs": particle_env_rows,
     "particle_engine": particle_engine_rows,
@@ -588,6 +652,7 @@ SECTIONS: dict[str, Callable[..., list[dict[str, Any]]]] = {
     "mopa_training": mopa_training_rows,
     "sawyer": sawyer_env_rows,
     "drycloth_threeboxes": drycloth_threeboxes_rows,
+    "nist": nist_rows,
 }
 
 

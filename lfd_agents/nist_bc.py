@@ -110,22 +110,49 @@ class SeparableFiLMBlock(nn.Module):
         return x + y if self.residual else y
 
 
-class ImageTokenizer(nn.Module):
-    """FiLM-conditioned conv encoder: image (N, 3, H, W) in [0, 1] → tokens (N, k, d)."""
+class SpatialSoftmax(nn.Module):
+    """Expected image coordinates of ``k`` learned feature maps (visuomotor keypoints)."""
 
-    def __init__(self, cond_dim: int, d_model: int, widths: Sequence[int] = (16, 32, 64, 64),
-                 tokens_hw: tuple[int, int] = (2, 2)):
+    def __init__(self, channels: int, k: int):
         super().__init__()
+        self.proj = nn.Conv2d(channels, k, 1)
+
+    def forward(self, x: th.Tensor) -> th.Tensor:
+        n, _, h, w = x.shape
+        attn = self.proj(x).flatten(2).softmax(dim=-1).view(n, -1, h, w)
+        ys = th.linspace(-1.0, 1.0, h, device=x.device)
+        xs = th.linspace(-1.0, 1.0, w, device=x.device)
+        return th.cat([(attn.sum(3) * ys).sum(-1), (attn.sum(2) * xs).sum(-1)], dim=1)  # (N, 2k)
+
+
+class ImageTokenizer(nn.Module):
+    """FiLM-conditioned conv encoder: image (N, 3, H, W) in [0, 1] → tokens (N, k, d).
+
+    A stride-2 stem and stride-2 separable blocks bring the feature map down to about 8 rows,
+    then two stride-1 blocks; the map is average-pooled to ``tokens_hw`` tokens and summarised
+    by one more token of ``keypoints`` spatial-softmax coordinates (precise positions of the
+    peg and holes are what insertion needs).
+    """
+
+    def __init__(self, image_hw: tuple[int, int], cond_dim: int, d_model: int, tokens_hw: tuple[int, int] = (2, 2),
+                 keypoints: int = 16):
+        super().__init__()
+        widths = (16, 32, 64)
         # CoordConv: two extra input channels with the pixel coordinates make image positions explicit
         self.stem = nn.Sequential(nn.Conv2d(5, widths[0], 3, stride=2, padding=1), nn.GroupNorm(4, widths[0]), nn.SiLU())
+        downs = max(0, int(round(np.log2(max(1, image_hw[0] // 2) / 8))))
+        strides = [2] * downs + [1, 1]
         blocks, c = [], widths[0]
-        for i, w in enumerate(widths[1:]):
-            blocks.append(SeparableFiLMBlock(c, w, stride=2 if i < 2 else 1, cond_dim=cond_dim))
+        for i, stride in enumerate(strides):
+            w = widths[min(i + 1, len(widths) - 1)]
+            blocks.append(SeparableFiLMBlock(c, w, stride=stride, cond_dim=cond_dim))
             c = w
         self.blocks = nn.ModuleList(blocks)
         self.pool = nn.AdaptiveAvgPool2d(tokens_hw)
         self.out = nn.Linear(c, d_model)
-        self.num_tokens = tokens_hw[0] * tokens_hw[1]
+        self.keypoints = SpatialSoftmax(c, keypoints)
+        self.keypoint_token = nn.Linear(2 * keypoints, d_model)
+        self.num_tokens = tokens_hw[0] * tokens_hw[1] + 1
 
     @staticmethod
     def _with_coordinates(images: th.Tensor) -> th.Tensor:
@@ -138,20 +165,22 @@ class ImageTokenizer(nn.Module):
         x = self.stem(self._with_coordinates(images))
         for block in self.blocks:
             x = block(x, cond)
-        x = self.pool(x).flatten(2).transpose(1, 2)  # (N, k, C)
-        return self.out(x)
+        pooled = self.out(self.pool(x).flatten(2).transpose(1, 2))  # (N, hw, d)
+        keys = self.keypoint_token(self.keypoints(x))[:, None, :]  # (N, 1, d)
+        return th.cat([pooled, keys], dim=1)
 
 
 class RT1Policy(nn.Module):
     """Instruction + image history → per-axis action-bin logits (see the module docstring)."""
 
-    def __init__(self, n_cameras: int, history: int, n_bins: int, d_model: int = 64, n_layers: int = 2,
+    def __init__(self, n_cameras: int, history: int, n_bins: int, image_hw: tuple[int, int] = (32, 40),
+                 d_model: int = 64, n_layers: int = 2,
                  n_heads: int = 4, instruction_buckets: int = 512, instruction_dim: int = 32,
                  tokens_hw: tuple[int, int] = (2, 2)):
         super().__init__()
         self.n_cameras, self.history, self.n_bins = n_cameras, history, n_bins
         self.instruction = nn.EmbeddingBag(instruction_buckets, instruction_dim, mode="mean")
-        self.tokenizer = ImageTokenizer(instruction_dim, d_model, tokens_hw=tokens_hw)
+        self.tokenizer = ImageTokenizer(image_hw, instruction_dim, d_model, tokens_hw=tokens_hw)
         n_tokens = history * n_cameras * self.tokenizer.num_tokens + 1
         self.instruction_token = nn.Linear(instruction_dim, d_model)
         self.position = nn.Parameter(th.zeros(1, n_tokens, d_model))
@@ -299,8 +328,8 @@ class NistBC:
         self.num_threads = num_threads
         self.verbose = int(verbose)
         th.manual_seed(int(seed))
-        self.policy = RT1Policy(len(cams), int(history), e.num_bins, d_model=int(d_model), n_layers=int(n_layers),
-                                instruction_buckets=512).to(self.device)
+        self.policy = RT1Policy(len(cams), int(history), e.num_bins, image_hw=tuple(e.image_size), d_model=int(d_model),
+                                n_layers=int(n_layers), instruction_buckets=512).to(self.device)
         self.optimizer = th.optim.AdamW(self.policy.parameters(), lr=float(learning_rate), weight_decay=1e-4)
         self._rng = np.random.default_rng(int(seed))
         self._demonstrations = demonstrations

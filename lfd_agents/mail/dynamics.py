@@ -53,7 +53,8 @@ class DynamicsConfig:
     num_threads: int = 1
     #: carry the LSTM state across the steps of a rollout. MAIL trains on length-1 sequences
     #: (as :meth:`LearnedDynamics.fit` does), so a carried state is one the model never saw in
-    #: training; by default every step starts from the zero state (measured: better CEM plans)
+    #: training; by default every step starts from the zero state (ThreeBoxes 3→1, 4 demos:
+    #: mean p̂ 0.55 vs 0.53 carried, i.e. no worse)
     carry_hidden: bool = False
     #: workspace box (metres) of the normalised actions; positions are normalised with it too
     workspace_low: tuple[float, float, float] = (-1.0, -1.0, -1.0)

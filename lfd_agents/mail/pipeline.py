@@ -76,6 +76,10 @@ class MAIL:
             raise ValueError(f"backend must be 'learned' or 'simulator', got {self.config.backend!r}")
         self.student_env_id = student_env_id
         self.student_kwargs = {**(student_kwargs or {}), "action_mode": "pick_place"}
+        #: obs mode of the student dataset and policy (the particles are read from env states)
+        self.obs_mode = str(self.student_kwargs.pop("obs_mode", "state"))
+        if self.obs_mode == "particles":
+            self.obs_mode = "state"
         self.teacher_path = Path(teacher_dataset)
         self.teacher = datasets.load(self.teacher_path)
         self.workdir = Path(workdir)
@@ -104,6 +108,10 @@ class MAIL:
     def _dataset_dir(self, root: Path) -> Path | None:
         found = sorted(p.parent for p in root.rglob("data")) if root.exists() else []
         return found[0] if found else None
+
+    def student_dataset(self) -> Path | None:
+        """Folder of the student dataset written by :meth:`convert` (``None`` before / if none kept)."""
+        return self._dataset_dir(self.student_path)
 
     # ------------------------------------------------------------------ stage 1
     def random_data(self) -> Path:
@@ -214,7 +222,7 @@ class MAIL:
             return json.loads(stats_path.read_text())
         backend = self._backend()
         steps = self.config.student_steps or self.env.unwrapped.horizon
-        record_env = gym.make(self.student_env_id, **{**self.student_kwargs, "obs_mode": "state"})
+        record_env = gym.make(self.student_env_id, **{**self.student_kwargs, "obs_mode": self.obs_mode})
         kept, finals = [], []
         t0 = time.perf_counter()
         episodes = list(self.teacher.iterate_episodes())[: max_demos]
@@ -238,7 +246,7 @@ class MAIL:
                  "model_transitions": int(getattr(backend, "transitions", 0))}
         if kept:
             datasets.write_dataset(kept, record_env, self.student_env_id, self.student_path, name="mail-student",
-                                   env_kwargs={**self.student_kwargs, "obs_mode": "state"},
+                                   env_kwargs={**self.student_kwargs, "obs_mode": self.obs_mode},
                                    extra={"teacher": str(self.teacher_path)})
         stats_path.write_text(json.dumps(stats, indent=1))
         return stats
@@ -258,8 +266,9 @@ class MAIL:
         data = self._dataset_dir(self.student_path)
         if data is None:
             raise RuntimeError("no student dataset: run convert() first (or lower the threshold)")
-        env = gym.make(self.student_env_id, **{**self.student_kwargs, "obs_mode": "state"})
-        model = DMfD("MlpPolicy", env, demonstrations=str(data), rsi_prob=0.0, seed=self.config.seed,
+        env = gym.make(self.student_env_id, **{**self.student_kwargs, "obs_mode": self.obs_mode})
+        policy = "MlpPolicy" if self.obs_mode == "state" else ("CnnPolicy" if self.obs_mode == "image" else "MultiInputPolicy")
+        model = DMfD(policy, env, demonstrations=str(data), rsi_prob=0.0, seed=self.config.seed,
                      **dmfd_kwargs)
         model.learn(total_timesteps)
         model.save(self.policy_path)

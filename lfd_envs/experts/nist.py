@@ -142,4 +142,52 @@ class NistInsertExpert:
         return self._stall >= STALL_STEPS and not e._is_success()
 
 
-__all__ = ["NistInsertExpert"]
+def success_rates(fit: str = "loose", action_mode: str = "continuous", episodes: int = 50,
+                  recovery_prob: float = 0.3, action_repeat: int = 1) -> dict[str, dict[str, float]]:
+    """Expert success rate, recovery count and mean length per task (state observations)."""
+    from lfd_envs.mujoco.nist import NistBoardInsertEnv, all_tasks
+
+    out = {}
+    for task in all_tasks(fit):
+        env = NistBoardInsertEnv(instruction=task, fit=fit, obs_mode="state", action_mode=action_mode,
+                                 action_repeat=action_repeat)
+        expert = NistInsertExpert(env, recovery_prob=recovery_prob)
+        wins, recovered, lengths = 0, 0, []
+        for seed in range(int(episodes)):
+            obs, _ = env.reset(seed=seed)
+            expert.reset()
+            done, info = False, {}
+            while not done:
+                action, _ = expert.predict(obs)
+                obs, _, terminated, truncated, info = env.step(action)
+                done = terminated or truncated
+            wins += bool(info["is_success"])
+            recovered += expert.recovered
+            lengths.append(env.elapsed_steps)
+        out[task] = {"success_rate": wins / episodes, "recovered_episodes": recovered,
+                     "mean_length": float(np.mean(lengths))}
+    return out
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m lfd_envs.experts.nist [--fit tight] [--action-mode tokens] [--episodes 100]``."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description="Success rate of the NIST insertion expert per task")
+    parser.add_argument("--fit", default="loose", choices=("loose", "tight"))
+    parser.add_argument("--action-mode", default="continuous", choices=("continuous", "tokens"))
+    parser.add_argument("--episodes", type=int, default=50)
+    parser.add_argument("--recovery-prob", type=float, default=0.3)
+    parser.add_argument("--action-repeat", type=int, default=1)
+    args = parser.parse_args(argv)
+    rates = success_rates(args.fit, args.action_mode, args.episodes, args.recovery_prob, args.action_repeat)
+    for task, r in rates.items():
+        print(f"{task:36s} success {r['success_rate']:.3f}  recovered {r['recovered_episodes']:3d}  "
+              f"mean length {r['mean_length']:.1f}")
+
+
+if __name__ == "__main__":
+    main()
+
+
+__all__ = ["NistInsertExpert", "success_rates"]

@@ -277,7 +277,8 @@ class SawyerPushExpert(_SawyerExpert):
     pre_contact = 0.11
     contact = 0.065
     max_move = 0.02
-    tilt_deg = 45
+    #: approach axis below horizontal (deg) and grip-site height above the cube centre (m)
+    tilt_deg = 45.0
     height = 0.015
 
     def __init__(self, env: Any, **kwargs: Any) -> None:
@@ -290,9 +291,11 @@ class SawyerPushExpert(_SawyerExpert):
         return np.array([1.0, 0.0]) if n < 1e-6 else d / n
 
     def _pre_contact(self) -> np.ndarray | None:
+        """Grip site behind the cube on the cube→goal line, gripper pointing along it (tilted
+        down); only IK solutions from which the whole push stays clear of the tunnel are used."""
         cube, u = self.base.cube_pos(), self._push_dir()
         pos = np.array([*(cube[:2] - self.pre_contact * u), cube[2] + self.height])
-        tilt = np.radians(self.tilt_deg)  # pointing slightly down keeps the wrist off the table
+        tilt = np.radians(self.tilt_deg)  # pointing down at 45° keeps the wrist off the table
         axis = np.array([u[0] * np.cos(tilt), u[1] * np.cos(tilt), -np.sin(tilt)])
         self.axis = axis
         seeds = self._seeds([(0.0, 0.6, 0.0, 0.5, 0.0, 0.4, 0.0), (0.0, 0.3, 0.0, 1.2, 0.0, -0.1, 0.0),
@@ -321,9 +324,6 @@ class SawyerPushExpert(_SawyerExpert):
             target = behind + min(0.03, remaining + 0.01) * u
         dpos = np.array([*(target - eef[:2]), cube[2] + self.height - eef[2]])
         return self._action(self._cartesian(dpos, self.axis))
-
-
-
 
 
 class SawyerLiftExpert(_SawyerExpert):
@@ -366,8 +366,6 @@ class SawyerLiftExpert(_SawyerExpert):
         return self._action(self._cartesian(target - eef, self.down), 1.0)
 
 
-
-
 class SawyerAssemblyExpert(_SawyerExpert):
     """Expert for ``SawyerAssemblyObstacle-v0``: plan the leg above the hole (clear of the other
     legs), then lower it in with lateral correction."""
@@ -395,5 +393,8 @@ class SawyerAssemblyExpert(_SawyerExpert):
         return self._action(self._cartesian(dpos, self.down))
 
     def ik_tip(self) -> np.ndarray:
+        """Tip of the held leg (the site the expert steers)."""
         return self.base.leg_head()
+
+
 __all__ = ["SawyerPushExpert", "SawyerLiftExpert", "SawyerAssemblyExpert", "ClearanceChecker", "make_planner"]

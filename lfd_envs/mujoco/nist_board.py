@@ -136,8 +136,8 @@ def scene_xml(fit: str) -> str:
     holes = []
     for i, name in enumerate(SIZE_NAMES):
         holes += _ring(f"hole_{name}", *HOLE_XY[i], 0.5 * HOLE_DIAMETERS[fit][i])
-    ws_pos = np.array([0.0, -0.2, 0.24])
-    ws_cam = _look_at(ws_pos, np.array([0.0, 0.0, BOARD_TOP]))
+    ws_pos = np.array([0.0, -0.26, 0.30])
+    ws_cam = _look_at(ws_pos, np.array([0.0, 0.0, BOARD_TOP + 0.035]))
     wr_pos = np.array([0.0, -0.075, 0.085])
     wr_cam = _look_at(wr_pos, np.array([0.0, 0.0, -0.012]))
     finger = 'class="visual" type="box" size="0.003 0.009 0.012" rgba="0.2 0.2 0.22 1"'

@@ -320,19 +320,13 @@ class ParticleSim:
             g = self._grasped.copy()
         else:
             g = self._as_bool_array(grasp, (W, P), "grasp")
+        self._frame(targets, g)
+
+    def _frame(self, targets: np.ndarray, g: np.ndarray) -> None:
+        """One frame with validated picker targets ``(W, P, 3)`` float64 and grasp flags ``(W, P)``."""
+        P = self._P
         if P:
-            events = np.zeros((W, P), np.int32)
-            events[g & ~self._grasped] = 1
-            events[~g & self._grasped] = 2
-            if events.any():
-                self._events.assign(events.ravel())
-                self._sync_pickers()
-                wp.launch(K.grasp_update, dim=W, device=self._device,
-                          inputs=[self.particle_q, self._inv_mass, self._attach, self._attach_off,
-                                  self.picker_q, self._events, self._N, P,
-                                  float(self._params.grasp_radius),
-                                  int(self._params.grasp_mode == "closest")])
-                self._update_tethers()
+            self._grasp_events(g)
             self._write_pickers(self._pick_start, self._picker_pos)
             self._write_pickers(self._pick_end, targets)
         self._run_frame()
@@ -340,6 +334,43 @@ class ParticleSim:
         self._grasped = g
         if P:
             self._write_pickers(self.picker_q, targets)
+
+    def _grasp_events(self, g: np.ndarray) -> None:
+        """Attach/release particles where the grasp flags ``g`` change; relax released worlds."""
+        W, P = self._W, self._P
+        grab = g & ~self._grasped
+        release = ~g & self._grasped
+        if not (grab.any() or release.any()):
+            return
+        events = np.zeros((W, P), np.int32)
+        events[grab] = 1
+        events[release] = 2
+        self._events.assign(events.ravel())
+        self._sync_pickers()
+        wp.launch(K.grasp_update, dim=W, device=self._device,
+                  inputs=[self.particle_q, self._inv_mass, self._attach, self._attach_off,
+                          self.picker_q, self._events, self._N, P,
+                          float(self._params.grasp_radius),
+                          int(self._params.grasp_mode == "closest")])
+        self._update_tethers()
+        if release.any() and self._params.release_relaxation > 0:
+            self._relax(release.any(axis=1))
+
+    def _relax(self, worlds: np.ndarray) -> None:
+        """Position-only relaxation of the free particles of ``worlds`` ``(W,)`` bool (see
+        ``SimParams.release_relaxation``): constraint and collision projections, no velocity update."""
+        p, dev = self._params, self._device
+        W, N = self._W, self._N
+        flags = wp.array(worlds.astype(np.int32), dtype=wp.int32, device=dev)
+        wp.launch(K.relax_prepare, dim=self._dim(W * N), device=dev,
+                  inputs=[self.particle_q, self._q_prev, self._inv_mass, self._attach, self._box_of,
+                          flags, self._w_eff, N, W * N, self._chunk(W * N)])
+        sc_on = int(p.self_collision and self._has_sc)
+        if sc_on:
+            self._build_neighbors()
+        for _ in range(p.release_relaxation):
+            self._solve_distance_constraints()
+            self._particle_pass(sc_on, skip_kinematic=1)
 
     def _run_frame(self) -> None:
         if not self._use_graph:
@@ -367,7 +398,6 @@ class ParticleSim:
         h = p.substep_dt
         damp = max(0.0, 1.0 - p.damping * h)
         sc_on = int(p.self_collision and self._has_sc)
-        stiffness = (p.stretch_stiffness, p.shear_stiffness, p.bend_stiffness)  # by constraint type
         q = self.particle_q
         for s in range(p.substeps):
             alpha = (s + 1) / p.substeps
@@ -377,22 +407,9 @@ class ParticleSim:
                               self._w_eff, N, max(P, 1), alpha, p.gravity, h, damp, p.max_speed,
                               W * N, self._chunk(W * N)])
             if sc_on and s % p.self_collision_interval == 0:
-                wp.launch(K.build_grid, dim=W, device=dev,
-                          inputs=[q, self._sc_r, self._grid_params, N, self._M, self._cell_start,
-                                  self._cell_end, self._sorted, self._sorted_q, self._sorted_r])
-                wp.launch(K.build_neighbors, dim=self._dim(W * N), device=dev,
-                          inputs=[q, self._sc_r, self._obj, self._rest, self._grid_params, N,
-                                  self._M, self._K, self._cell_start, self._cell_end, self._sorted,
-                                  self._sorted_q, self._sorted_r, self._nbr, self._nbr_d, self._nbr_count, W * N,
-                                  self._chunk(W * N)])
+                self._build_neighbors()
             for _ in range(p.iterations):
-                for off, cnt, typ in self._color_sets:
-                    args = [self._con_ij, self._con_rest, stiffness[typ], off, cnt, self._nnz, N, q,
-                            self._w_eff]
-                    if dev.is_cpu:
-                        wp.launch(K.solve_constraints_serial, dim=1, device=dev, inputs=args + [W])
-                    else:
-                        wp.launch(K.solve_constraints, dim=W * cnt, device=dev, inputs=args)
+                self._solve_distance_constraints()
                 self._particle_pass(sc_on)
                 if B:
                     wp.launch(K.shape_match, dim=W * B, device=dev,
@@ -407,13 +424,39 @@ class ParticleSim:
                               self._fric, 1.0 / h, p.static_friction, p.dynamic_friction,
                               p.max_speed, W * N, self._chunk(W * N)])
 
-    def _particle_pass(self, sc_on: int) -> None:
+    def _build_neighbors(self) -> None:
+        """Rebuild the self-collision hash grid and neighbour lists from the current positions."""
+        W, N, dev, q = self._W, self._N, self._device, self.particle_q
+        wp.launch(K.build_grid, dim=W, device=dev,
+                  inputs=[q, self._sc_r, self._grid_params, N, self._M, self._cell_start,
+                          self._cell_end, self._sorted, self._sorted_q, self._sorted_r])
+        wp.launch(K.build_neighbors, dim=self._dim(W * N), device=dev,
+                  inputs=[q, self._sc_r, self._obj, self._rest, self._grid_params, N,
+                          self._M, self._K, self._cell_start, self._cell_end, self._sorted,
+                          self._sorted_q, self._sorted_r, self._nbr, self._nbr_d, self._nbr_count, W * N,
+                          self._chunk(W * N)])
+
+    def _solve_distance_constraints(self) -> None:
+        """One Gauss-Seidel sweep over the distance constraints, one launch per colour."""
+        p, W, N, dev = self._params, self._W, self._N, self._device
+        stiffness = (p.stretch_stiffness, p.shear_stiffness, p.bend_stiffness)  # by constraint type
+        for off, cnt, typ in self._color_sets:
+            args = [self._con_ij, self._con_rest, stiffness[typ], off, cnt, self._nnz, N, self.particle_q,
+                    self._w_eff]
+            if dev.is_cpu:
+                wp.launch(K.solve_constraints_serial, dim=1, device=dev, inputs=args + [W])
+            else:
+                wp.launch(K.solve_constraints, dim=W * cnt, device=dev, inputs=args)
+
+    def _particle_pass(self, sc_on: int, skip_kinematic: int = 0) -> None:
         W, N, S, B, q = self._W, self._N, self._S, self._B, self.particle_q
+        p = self._params
         wp.copy(self._q_snap, q, count=W * N)
         wp.launch(K.solve_particles, dim=self._dim(W * N), device=self._device,
                   inputs=[N, q, self._q_snap, self._q_prev, self._w_eff, self._attach,
                           self._radius, self._box_of, sc_on, self._sc_r,
-                          self._params.self_collision_relaxation, self._K,
+                          p.self_collision_relaxation, p.particle_static_friction,
+                          p.particle_dynamic_friction, skip_kinematic, self._K,
                           self._nbr, self._nbr_count, S, self._sbox_pos, self._sbox_rot,
                           self._sbox_he, B, self._box_pos, self._box_rot, self._box_he,
                           self._box_kin, self._fric, self._tether_anchor, self._tether_len,

@@ -498,6 +498,9 @@ def solve_particles_range(
     sc_on: int,
     sc_r: wp.array(dtype=float),
     sc_relax: float,
+    sc_mu_s: float,
+    sc_mu_k: float,
+    skip_kinematic: int,
     max_nbr: int,
     nbr: wp.array(dtype=wp.int32),
     nbr_count: wp.array(dtype=wp.int32),
@@ -519,8 +522,8 @@ def solve_particles_range(
     (with continuous collision against the substep start), friction bookkeeping."""
     for i in range(lo, hi):
         wi = w_eff[i]
-        if wi == 0.0 and attach[i] < 0:
-            continue  # pinned
+        if wi == 0.0 and (attach[i] < 0 or skip_kinematic != 0):
+            continue  # pinned (or, in a release relaxation, any kinematic particle)
         w = i // num_particles
         li = i - w * num_particles
         base = w * num_particles
@@ -540,6 +543,19 @@ def solve_particles_range(
                         if l2 < dmin * dmin and l2 > 1.0e-18:
                             l = wp.sqrt(l2)
                             x = x + d * (sc_relax * (dmin - l) / l * wi / (wi + wj))
+                            if sc_mu_s > 0.0 or sc_mu_k > 0.0:
+                                pen = dmin - l
+                                share = wi / (wi + wj)
+                                n = d / l
+                                # position-based Coulomb friction (Macklin et al. 2014): remove
+                                # (part of) the tangential displacement relative to the partner
+                                dr = (x - q_prev[i]) - (q_snap[j] - q_prev[j])
+                                dtan = dr - wp.dot(dr, n) * n
+                                dtl = wp.length(dtan)
+                                if dtl > 1.0e-12:
+                                    if dtl > sc_mu_s * pen:
+                                        dtan = dtan * wp.min(1.0, sc_mu_k * pen / dtl)
+                                    x = x - dtan * share
             ta = tether_anchor[i]
             if ta >= 0:
                 d = x - q_snap[ta]
@@ -595,6 +611,9 @@ def solve_particles(
     sc_on: int,
     sc_r: wp.array(dtype=float),
     sc_relax: float,
+    sc_mu_s: float,
+    sc_mu_k: float,
+    skip_kinematic: int,
     max_nbr: int,
     nbr: wp.array(dtype=wp.int32),
     nbr_count: wp.array(dtype=wp.int32),
@@ -615,7 +634,7 @@ def solve_particles(
 ):
     """Kernel wrapper of :func:`solve_particles_range` (see there)."""
     tid = wp.tid()
-    solve_particles_range(tid * chunk, wp.min(tid * chunk + chunk, total), num_particles, q, q_snap, q_prev, w_eff, attach, radius, box_of, sc_on, sc_r, sc_relax, max_nbr, nbr, nbr_count, num_static, sbox_pos, sbox_rot, sbox_he, num_boxes, box_pos, box_rot, box_he, box_kin, fric, tether_anchor, tether_len)
+    solve_particles_range(tid * chunk, wp.min(tid * chunk + chunk, total), num_particles, q, q_snap, q_prev, w_eff, attach, radius, box_of, sc_on, sc_r, sc_relax, sc_mu_s, sc_mu_k, skip_kinematic, max_nbr, nbr, nbr_count, num_static, sbox_pos, sbox_rot, sbox_he, num_boxes, box_pos, box_rot, box_he, box_kin, fric, tether_anchor, tether_len)
 
 
 @wp.func
@@ -821,6 +840,35 @@ def update_tethers(
         else:
             tether_anchor[i] = -1
             tether_len[i] = 0.0
+
+
+# ----------------------------------------------------------------------------- release relaxation
+@wp.kernel
+def relax_prepare(
+    q: wp.array(dtype=wp.vec3),
+    q_prev: wp.array(dtype=wp.vec3),
+    inv_mass: wp.array(dtype=float),
+    attach: wp.array(dtype=wp.int32),
+    box_of: wp.array(dtype=wp.int32),
+    world_flag: wp.array(dtype=wp.int32),
+    w_eff: wp.array(dtype=float),
+    num_particles: int,
+    total: int,
+    chunk: int,
+):
+    """Solver weights of a position-only relaxation: free cloth/rope particles of the flagged
+    worlds keep their inverse mass, every other particle gets 0 (is left untouched); the
+    relaxing particles' substep start is their current position (no velocity is derived)."""
+    tid = wp.tid()
+    for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
+        w = i // num_particles
+        li = i - w * num_particles
+        wi = float(0.0)
+        if world_flag[w] != 0:
+            q_prev[i] = q[i]
+            if attach[i] < 0 and box_of[li] < 0:
+                wi = inv_mass[i]
+        w_eff[i] = wi
 
 
 # ----------------------------------------------------------------------------- grasping

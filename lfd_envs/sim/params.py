@@ -76,6 +76,21 @@ class SimParams:
             picker_threshold + picker_radius + particle_radius = 0.06125).
         rigid_weight_kinematic: Shape-matching weight of a grasped/pinned rigid-box particle
             relative to a free one (dimensionless, >= 1).
+        particle_static_friction: Coulomb static friction coefficient of particle-particle
+            (self-collision) contacts, e.g. cloth on cloth.  Position based (Macklin et al.
+            2014): in every self-collision projection the tangential displacement of the pair
+            relative to each other during the substep is removed entirely while it is below
+            ``particle_static_friction x penetration`` (the layers stick), else reduced by
+            ``particle_dynamic_friction x penetration`` (they slide).  0 disables.
+        particle_dynamic_friction: Coulomb dynamic friction coefficient of particle-particle
+            contacts (see ``particle_static_friction``).
+        release_relaxation: Position-only solver iterations run on the worlds where a picker
+            releases (at the start of that frame, after the release).  A held particle is
+            kinematic, so the constraint error around it (stretch of the cloth it carries, a
+            particle pressed into a lower layer) is not resolved while it is held; projected
+            in the next substep it would become a velocity ``error / substep_dt`` (a kick of
+            1-2 m/s).  The relaxation moves the particles (constraints, collisions, friction)
+            without changing their velocities.  0 disables.
     """
 
     frame_dt: float = 0.01
@@ -104,6 +119,9 @@ class SimParams:
     grasp_mode: str = "closest"
     grasp_radius: float = 0.06125
     rigid_weight_kinematic: float = 1000.0
+    particle_static_friction: float = 0.5
+    particle_dynamic_friction: float = 0.4
+    release_relaxation: int = 10
 
     def __post_init__(self) -> None:
         def _finite(name: str) -> float:
@@ -128,7 +146,8 @@ class SimParams:
             if _finite(name) <= 0.0:
                 raise ValueError(f"SimParams.{name} must be > 0, got {getattr(self, name)}")
         for name in ("picker_radius", "damping", "static_friction", "dynamic_friction",
-                     "self_collision_margin", "tether_slack"):
+                     "self_collision_margin", "tether_slack", "particle_static_friction",
+                     "particle_dynamic_friction"):
             if _finite(name) < 0.0:
                 raise ValueError(f"SimParams.{name} must be >= 0, got {getattr(self, name)}")
         _finite("gravity")
@@ -143,6 +162,7 @@ class SimParams:
         _int("self_collision_interval", 1)
         _int("max_neighbors", 1)
         _int("collision_passes", 0)
+        _int("release_relaxation", 0)
         if not 1.0 <= _finite("self_collision_relaxation") < 2.0:
             raise ValueError("SimParams.self_collision_relaxation must lie in [1, 2)")
         for name in ("self_collision", "tethers"):
