@@ -52,7 +52,6 @@ from torch import nn
 from lfd_agents.augment import random_shift
 
 DEFAULT_CAMERAS = ("workspace", "wrist")
-READOUT = "mean"
 
 
 @contextlib.contextmanager
@@ -199,8 +198,7 @@ class RT1Policy(nn.Module):
         tokens = self.tokenizer(images.flatten(0, 2), cond)  # (B·h·c, k, d)
         tokens = tokens.reshape(b, h * c * tokens.shape[1], -1)
         tokens = th.cat([self.instruction_token(emb)[:, None, :], tokens], dim=1) + self.position
-        encoded = self.transformer(tokens)
-        out = self.norm(encoded[:, 0] if READOUT == "cls" else encoded.mean(dim=1))
+        out = self.norm(self.transformer(tokens).mean(dim=1))
         return self.head(out).view(b, 3, self.n_bins)
 
 

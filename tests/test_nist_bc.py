@@ -13,17 +13,19 @@ SIZE = (32, 40)
 
 @pytest.fixture(scope="module")
 def demos():
-    return collect_demonstrations({"image_size": SIZE, "horizon": 60, "instruction": TRAIN_TASKS}, 8, seed=0)
+    return collect_demonstrations({"image_size": SIZE, "horizon": 60, "instruction": TRAIN_TASKS}, 12, seed=0)
 
 
 def test_bc_beats_untrained_policy(demos):
     env = NistBoardInsertEnv(instruction="insert medium peg in large hole", image_size=SIZE, horizon=40)
-    agent = NistBC(env, demos, history=2, seed=0, learning_rate=2e-3)
-    untrained = evaluate(agent, env, episodes=4, seed=0)["mean_normalized_performance"]
-    agent.learn(total_timesteps=150)
-    trained = evaluate(agent, env, episodes=4, seed=0)["mean_normalized_performance"]
-    # the trained policy moves the peg most of the way to the hole bottom; the untrained one does not
-    assert trained > 0.25 and trained - untrained > 0.4, (untrained, trained)
+    agent = NistBC(env, demos, history=2, seed=0, learning_rate=1e-3)
+    untrained = evaluate(agent, env, episodes=6, seed=0)
+    agent.learn(total_timesteps=400)
+    trained = evaluate(agent, env, episodes=6, seed=0)
+    # trained: the peg ends much closer to the hole (laterally, from images alone) and deeper
+    p0, p1 = untrained["mean_normalized_performance"], trained["mean_normalized_performance"]
+    assert p1 > 0.3 and p1 - p0 > 0.4, (untrained, trained)
+    assert trained["mean_lateral_error"] < 0.6 * untrained["mean_lateral_error"], (untrained, trained)
 
 
 def test_api_ablations_and_save_load(demos, tmp_path):

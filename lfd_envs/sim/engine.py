@@ -134,6 +134,7 @@ class ParticleSim:
         self._sc_r = zeros(W * N, wp.float32)
         self._rest = zeros(W * N, wp.vec3)
         self._con_rest = zeros(W * nnz, wp.float32)
+        self._con_kscale = wp.full(max(1, W * nnz), 1.0, dtype=wp.float32, device=dev)
         self._w_eff = zeros(W * N, wp.float32)
         self._tether_anchor = wp.full(max(1, W * N), -1, dtype=wp.int32, device=dev)
         self._tether_len = zeros(W * N, wp.float32)
@@ -176,6 +177,7 @@ class ParticleSim:
         self._pick_start = zeros(W * P, wp.vec3)
         self._pick_end = zeros(W * P, wp.vec3)
         self._events = zeros(W * P, wp.int32)
+        self._relax_flags = zeros(W, wp.int32)
         self._picker_pos = np.zeros((W, P, 3), np.float64)
         for p in range(P):
             self._picker_pos[:, p] = (0.0, 0.1 * (p - 0.5 * (P - 1)), 0.3)
@@ -186,6 +188,7 @@ class ParticleSim:
         self._sync_pickers()
         self._update_grid_params()
         self._update_tethers()
+        self._update_stiffness_scale()
 
     # ================================================================== properties
     @property
@@ -322,6 +325,62 @@ class ParticleSim:
             g = self._as_bool_array(grasp, (W, P), "grasp")
         self._frame(targets, g)
 
+    def step_frames(self, picker_targets: Any, grasp: Any = None) -> None:
+        """Advance every world by ``F`` frames; the same as ``F`` calls of :meth:`step`, bit for bit.
+
+        Args:
+            picker_targets: ``(F, W, P, 3)`` picker positions at the end of each frame.
+            grasp: ``(F, W, P)`` grasp flags of each frame, or ``None`` to keep the current flags.
+
+        All inputs are validated and converted once; frames without a grasp change only set the
+        picker path and replay the recorded frame graph (minimal Python work per frame).
+
+        Raises:
+            ValueError: wrong shapes, NaN/inf values.
+        """
+        W, P = self._W, self._P
+        arr = np.asarray(picker_targets) if not isinstance(picker_targets, np.ndarray) else picker_targets
+        if arr.ndim != 4:
+            raise ValueError(f"picker_targets must have shape (F, {W}, {P}, 3), got {np.shape(arr)}")
+        F = arr.shape[0]
+        targets = self._as_float_array(arr, (F, W, P, 3), "picker_targets")
+        if grasp is None:
+            flags = np.broadcast_to(self._grasped, (F, W, P))
+        else:
+            flags = self._as_bool_array(grasp, (F, W, P), "grasp")
+        if F == 0:
+            return
+        if not P:
+            for _ in range(F):
+                self._run_frame()
+            return
+        path = np.empty((F + 1, W * P, 3), np.float32)  # picker positions at frame boundaries
+        path[0] = self._picker_pos.reshape(-1, 3)
+        path[1:] = targets.reshape(F, W * P, 3)
+        changes = np.concatenate([(flags[:1] != self._grasped[None]), flags[1:] != flags[:-1]]).any(axis=(1, 2))
+        if self._device.is_cpu:
+            start_view, end_view = self._pick_start.numpy(), self._pick_end.numpy()
+
+            def set_path(f: int) -> None:
+                start_view[: W * P] = path[f]
+                end_view[: W * P] = path[f + 1]
+        else:
+            dev_path = wp.array(path.reshape(-1, 3), dtype=wp.vec3, device=self._device)
+
+            def set_path(f: int) -> None:
+                wp.copy(self._pick_start, dev_path, src_offset=f * W * P, count=W * P)
+                wp.copy(self._pick_end, dev_path, src_offset=(f + 1) * W * P, count=W * P)
+        for f in range(F):
+            if changes[f]:
+                self._picker_pos = targets[f - 1] if f else self._picker_pos
+                self._grasp_events(np.array(flags[f], dtype=bool))
+                self._grasped = np.array(flags[f], dtype=bool)
+            set_path(f)
+            self._run_frame()
+        self._picker_pos = targets[-1].copy()
+        self._grasped = np.array(flags[-1], dtype=bool)
+        self._write_pickers(self.picker_q, self._picker_pos)
+
     def _frame(self, targets: np.ndarray, g: np.ndarray) -> None:
         """One frame with validated picker targets ``(W, P, 3)`` float64 and grasp flags ``(W, P)``."""
         P = self._P
@@ -359,12 +418,32 @@ class ParticleSim:
     def _relax(self, worlds: np.ndarray) -> None:
         """Position-only relaxation of the free particles of ``worlds`` ``(W,)`` bool (see
         ``SimParams.release_relaxation``): constraint and collision projections, no velocity update."""
+        flags = worlds.astype(np.int32)
+        if self._device.is_cpu:
+            self._relax_flags.numpy()[:] = flags
+        else:
+            self._relax_flags.assign(flags)
+        if not self._use_graph:
+            self._relax_ops()
+            return
+        key = (id(self._params), self._has_sc)
+        if getattr(self, "_relax_graph_key", None) != key:
+            wp.load_module(K, device=self._device)
+            wp.capture_begin(device=self._device)
+            try:
+                self._relax_ops()
+            finally:
+                self._relax_graph = wp.capture_end(device=self._device)
+            self._relax_graph_key = key
+        wp.capture_launch(self._relax_graph)
+
+    def _relax_ops(self) -> None:
+        """Launches of the release relaxation (recorded into a graph, flags in ``_relax_flags``)."""
         p, dev = self._params, self._device
         W, N = self._W, self._N
-        flags = wp.array(worlds.astype(np.int32), dtype=wp.int32, device=dev)
         wp.launch(K.relax_prepare, dim=self._dim(W * N), device=dev,
                   inputs=[self.particle_q, self._q_prev, self._inv_mass, self._attach, self._box_of,
-                          flags, self._w_eff, N, W * N, self._chunk(W * N)])
+                          self._relax_flags, self._w_eff, N, W * N, self._chunk(W * N)])
         sc_on = int(p.self_collision and self._has_sc)
         if sc_on:
             self._build_neighbors()
@@ -441,7 +520,7 @@ class ParticleSim:
         p, W, N, dev = self._params, self._W, self._N, self._device
         stiffness = (p.stretch_stiffness, p.shear_stiffness, p.bend_stiffness)  # by constraint type
         for off, cnt, typ in self._color_sets:
-            args = [self._con_ij, self._con_rest, stiffness[typ], off, cnt, self._nnz, N, self.particle_q,
+            args = [self._con_ij, self._con_rest, self._con_kscale, stiffness[typ], off, cnt, self._nnz, N, self.particle_q,
                     self._w_eff]
             if dev.is_cpu:
                 wp.launch(K.solve_constraints_serial, dim=1, device=dev, inputs=args + [W])
@@ -483,6 +562,7 @@ class ParticleSim:
             self._write_sc_radius(w, b._export())
         self._update_grid_params()
         self._update_tethers()
+        self._update_stiffness_scale()
 
     # ================================================================== pickers
     def set_picker_positions(self, positions: Any, world: int | None = None) -> None:
@@ -613,6 +693,7 @@ class ParticleSim:
         self._sync_pickers()
         self._update_grid_params()
         self._update_tethers()
+        self._update_stiffness_scale()
 
     def reset_world(self, world: int, builder: SceneBuilder) -> None:
         """Re-initialise one world from a builder with the same topology (new task variant):
@@ -634,6 +715,7 @@ class ParticleSim:
         self._grasped[w] = False
         self._update_grid_params()
         self._update_tethers()
+        self._update_stiffness_scale()
 
     def set_particles(self, world: int, positions: Any, velocities: Any | None = None) -> None:
         """Overwrite positions ``(N, 3)`` (and velocities, default zero) of one world."""
@@ -737,6 +819,20 @@ class ParticleSim:
             self._write_slice(self._sbox_pos, w * S, pos)
             self._write_slice(self._sbox_rot, w * S, rot)
             self._write_slice(self._sbox_he, w * S, he)
+
+    def _update_stiffness_scale(self) -> None:
+        """Per-constraint stiffness factors: 1, except bend constraints longer than twice
+        ``params.bend_reference_spacing`` (see :class:`SimParams`)."""
+        p, W, nnz = self._params, self._W, self._nnz
+        if not nnz:
+            return
+        scale = np.ones((W, nnz), np.float32)
+        if p.bend_reference_spacing is not None:
+            rest = self._con_rest.numpy()[: W * nnz].reshape(W, nnz).astype(np.float64)
+            bend = self._con_type == 2
+            ratio = 2.0 * p.bend_reference_spacing / np.maximum(rest[:, bend], 1e-12)
+            scale[:, bend] = np.minimum(1.0, ratio ** p.bend_spacing_exponent)
+        self._write_slice(self._con_kscale, 0, scale.reshape(-1))
 
     def _update_tethers(self) -> None:
         """Recompute the long-range attachments (after pins/grasps/state changes)."""

@@ -386,6 +386,7 @@ def project_distance(xi: wp.vec3, xj: wp.vec3, wi: float, wj: float, k: float, r
 def solve_constraints(
     con_ij: wp.array(dtype=wp.vec2i),
     con_rest: wp.array(dtype=float),
+    con_kscale: wp.array(dtype=float),
     stiffness: float,
     color_offset: int,
     color_count: int,
@@ -404,7 +405,7 @@ def solve_constraints(
     ij = con_ij[c]
     i = base + ij[0]
     j = base + ij[1]
-    xi, xj = project_distance(q[i], q[j], w_eff[i], w_eff[j], stiffness, con_rest[w * num_cons + c])
+    xi, xj = project_distance(q[i], q[j], w_eff[i], w_eff[j], stiffness * con_kscale[w * num_cons + c], con_rest[w * num_cons + c])
     q[i] = xi
     q[j] = xj
 
@@ -414,6 +415,7 @@ def solve_color_world(
     w: int,
     con_ij: wp.array(dtype=wp.vec2i),
     con_rest: wp.array(dtype=float),
+    con_kscale: wp.array(dtype=float),
     stiffness: float,
     color_offset: int,
     color_count: int,
@@ -442,10 +444,10 @@ def solve_color_world(
         j2 = base + ij2[1]
         i3 = base + ij3[0]
         j3 = base + ij3[1]
-        a0, b0 = project_distance(q[i0], q[j0], w_eff[i0], w_eff[j0], stiffness, con_rest[rbase + c])
-        a1, b1 = project_distance(q[i1], q[j1], w_eff[i1], w_eff[j1], stiffness, con_rest[rbase + c + 1])
-        a2, b2 = project_distance(q[i2], q[j2], w_eff[i2], w_eff[j2], stiffness, con_rest[rbase + c + 2])
-        a3, b3 = project_distance(q[i3], q[j3], w_eff[i3], w_eff[j3], stiffness, con_rest[rbase + c + 3])
+        a0, b0 = project_distance(q[i0], q[j0], w_eff[i0], w_eff[j0], stiffness * con_kscale[rbase + c], con_rest[rbase + c])
+        a1, b1 = project_distance(q[i1], q[j1], w_eff[i1], w_eff[j1], stiffness * con_kscale[rbase + c + 1], con_rest[rbase + c + 1])
+        a2, b2 = project_distance(q[i2], q[j2], w_eff[i2], w_eff[j2], stiffness * con_kscale[rbase + c + 2], con_rest[rbase + c + 2])
+        a3, b3 = project_distance(q[i3], q[j3], w_eff[i3], w_eff[j3], stiffness * con_kscale[rbase + c + 3], con_rest[rbase + c + 3])
         q[i0] = a0
         q[j0] = b0
         q[i1] = a1
@@ -458,7 +460,7 @@ def solve_color_world(
         ij = con_ij[c]
         i = base + ij[0]
         j = base + ij[1]
-        xi, xj = project_distance(q[i], q[j], w_eff[i], w_eff[j], stiffness, con_rest[rbase + c])
+        xi, xj = project_distance(q[i], q[j], w_eff[i], w_eff[j], stiffness * con_kscale[rbase + c], con_rest[rbase + c])
         q[i] = xi
         q[j] = xj
 
@@ -467,6 +469,7 @@ def solve_color_world(
 def solve_constraints_serial(
     con_ij: wp.array(dtype=wp.vec2i),
     con_rest: wp.array(dtype=float),
+    con_kscale: wp.array(dtype=float),
     stiffness: float,
     color_offset: int,
     color_count: int,
@@ -479,7 +482,7 @@ def solve_constraints_serial(
     """Same as :func:`solve_constraints` with one thread looping over all worlds and constraints
     of the colour (CPU variant: CPU launches are serial, and this avoids per-thread overhead)."""
     for w in range(num_worlds):
-        solve_color_world(w, con_ij, con_rest, stiffness, color_offset, color_count, num_cons,
+        solve_color_world(w, con_ij, con_rest, con_kscale, stiffness, color_offset, color_count, num_cons,
                           num_particles, q, w_eff)
 
 
