@@ -31,6 +31,9 @@ API (SB3-like)::
     action, _ = agent.predict(obs, deterministic=True)
     agent.save("bc.pt"); agent = NistBC.load("bc.pt", env)
 
+Images are resized to ``policy_image_size`` (default: the env's size) before the encoder; the
+harness factories below use at most 64×80 to keep CPU training affordable.
+
 Ablations from the benchmark harness: ``--agent lfd_agents.nist_bc:nist_bc`` (history 2, two
 cameras), ``nist_bc_h6`` (history 6) and ``nist_bc_1cam`` (workspace camera only).
 """
@@ -286,6 +289,8 @@ class NistBC:
         history: observation steps per decision (the thesis' best: 2; ablation: 6).
         cameras: cameras the policy sees (``("workspace", "wrist")`` or one of them).
         n_demos: demonstrations to collect when ``demonstrations`` is None.
+        policy_image_size: ``(H, W)`` the images are resized to (area averaging) before the
+            encoder; None = the env's ``image_size``. Training cost grows with the pixel count.
         train_tasks: instructions of the collected demonstrations (default: the thesis' two).
         batch_size, learning_rate: optimiser settings (AdamW).
         augment: random shifts (±2 px) and brightness jitter of training images.
@@ -299,6 +304,7 @@ class NistBC:
 
     def __init__(self, env: gym.Env, demonstrations: Any = None, *, history: int = 2,
                  cameras: Sequence[str] = DEFAULT_CAMERAS, n_demos: int = 40,
+                 policy_image_size: tuple[int, int] | None = None,
                  train_tasks: Sequence[str] | None = None, batch_size: int = 32, learning_rate: float = 1e-3,
                  augment: bool = True, d_model: int = 64, n_layers: int = 2,
                  expert_kwargs: dict[str, Any] | None = None, seed: int = 0, device: str = "cpu",
@@ -320,13 +326,15 @@ class NistBC:
             "learning_rate": float(learning_rate), "augment": bool(augment), "d_model": int(d_model),
             "n_layers": int(n_layers), "seed": int(seed), "expert_kwargs": dict(expert_kwargs or {}),
             "n_bins": int(e.num_bins), "action_mode": e.action_mode, "image_size": tuple(e.image_size),
+            "policy_image_size": tuple(int(v) for v in (policy_image_size or e.image_size)),
             "instruction_buckets": 512,
         }
         self.device = th.device(device)
         self.num_threads = num_threads
         self.verbose = int(verbose)
         th.manual_seed(int(seed))
-        self.policy = RT1Policy(len(cams), int(history), e.num_bins, image_hw=tuple(e.image_size), d_model=int(d_model),
+        self.policy = RT1Policy(len(cams), int(history), e.num_bins, image_hw=self.config["policy_image_size"],
+                                d_model=int(d_model),
                                 n_layers=int(n_layers), instruction_buckets=512).to(self.device)
         self.optimizer = th.optim.AdamW(self.policy.parameters(), lr=float(learning_rate), weight_decay=1e-4)
         self._rng = np.random.default_rng(int(seed))
@@ -336,6 +344,17 @@ class NistBC:
         self._history: deque = deque(maxlen=int(history))
 
     # ------------------------------------------------------------------ data
+    def _resize(self, frames: np.ndarray) -> np.ndarray:
+        """uint8 (..., H, W, 3) frames at ``policy_image_size``."""
+        h, w = self.config["policy_image_size"]
+        if frames.shape[-3:-1] == (h, w):
+            return frames
+        import cv2
+
+        flat = frames.reshape(-1, *frames.shape[-3:])
+        out = np.stack([cv2.resize(f, (w, h), interpolation=cv2.INTER_AREA) for f in flat])
+        return out.reshape(*frames.shape[:-3], h, w, 3)
+
     def _actions_to_bins(self, actions: np.ndarray) -> np.ndarray:
         n = self.config["n_bins"]
         if self.config["action_mode"] == "tokens":
@@ -365,7 +384,7 @@ class NistBC:
                 raise ValueError(f"demonstrations lack camera images {missing}; they have {sorted(obs)}")
             t_len = len(actions)
             for c in cams:
-                frames[c].append(np.asarray(obs[c])[: t_len + 1])
+                frames[c].append(self._resize(np.asarray(obs[c])[: t_len + 1]))
             ids = instruction_ids(obs["instruction"], self.config["instruction_buckets"])
             for t in range(t_len):
                 hist_idx.append([offset + max(0, t - h + 1 + j) for j in range(h)])
@@ -451,7 +470,8 @@ class NistBC:
             raise ValueError("NistBC.predict expects one NistBoardInsert observation dict with 'instruction'")
         if episode_start is not None and bool(np.any(episode_start)):
             self.reset()
-        frame = {c: th.from_numpy(np.ascontiguousarray(observation[c])) for c in self.config["cameras"]}
+        frame = {c: th.from_numpy(np.ascontiguousarray(self._resize(np.asarray(observation[c]))))
+                 for c in self.config["cameras"]}
         if not self._history:
             self._history.extend([frame] * self.config["history"])
         else:
@@ -478,14 +498,15 @@ class NistBC:
 
     @classmethod
     def load(cls, path: str | Path, env: gym.Env, demonstrations: Any = None, device: str = "cpu") -> "NistBC":
-        """Load a saved agent for ``env`` (which must match its image size and action mode)."""
+        """Load a saved agent for ``env`` (same action mode and bins; images are resized as saved)."""
         ckpt = th.load(str(path), map_location=device, weights_only=False)
         cfg = ckpt["config"]
         e = env.unwrapped
-        if tuple(e.image_size) != tuple(cfg["image_size"]) or e.action_mode != cfg["action_mode"]:
-            raise ValueError(f"env (image_size={e.image_size}, action_mode={e.action_mode!r}) does not match the saved "
-                             f"agent (image_size={cfg['image_size']}, action_mode={cfg['action_mode']!r})")
+        if e.action_mode != cfg["action_mode"] or e.num_bins != cfg["n_bins"]:
+            raise ValueError(f"env (action_mode={e.action_mode!r}, {e.num_bins} bins) does not match the saved "
+                             f"agent (action_mode={cfg['action_mode']!r}, {cfg['n_bins']} bins)")
         agent = cls(env, demonstrations, history=cfg["history"], cameras=cfg["cameras"], n_demos=cfg["n_demos"],
+                    policy_image_size=cfg.get("policy_image_size"),
                     train_tasks=cfg["train_tasks"], batch_size=cfg["batch_size"], learning_rate=cfg["learning_rate"],
                     augment=cfg["augment"], d_model=cfg["d_model"], n_layers=cfg["n_layers"],
                     expert_kwargs=cfg["expert_kwargs"], seed=cfg["seed"], device=device)
@@ -523,19 +544,28 @@ def evaluate(agent: Any, env: gym.Env, episodes: int, seed: int = 0, split: str 
             "mean_lateral_error": float(np.mean(lateral))}
 
 
+BENCHMARK_IMAGE_SIZE = (64, 80)  #: policy input of the harness factories (CPU budget)
+
+
+def _factory_kwargs(env: gym.Env, kwargs: dict[str, Any], **defaults: Any) -> dict[str, Any]:
+    h, w = env.unwrapped.image_size
+    size = BENCHMARK_IMAGE_SIZE if h * w > BENCHMARK_IMAGE_SIZE[0] * BENCHMARK_IMAGE_SIZE[1] else None
+    return {"policy_image_size": size, **defaults, **kwargs}
+
+
 def nist_bc(env: gym.Env, seed: int = 0, **kwargs: Any) -> NistBC:
-    """The thesis' design: history 2, workspace + wrist cameras."""
-    return NistBC(env, seed=seed, **{"history": 2, "cameras": DEFAULT_CAMERAS, **kwargs})
+    """The thesis' design: history 2, workspace + wrist cameras (images ≤ 64×80 for the CPU)."""
+    return NistBC(env, seed=seed, **_factory_kwargs(env, kwargs, history=2, cameras=DEFAULT_CAMERAS))
 
 
 def nist_bc_h6(env: gym.Env, seed: int = 0, **kwargs: Any) -> NistBC:
     """Ablation: history 6 (two cameras)."""
-    return NistBC(env, seed=seed, **{"history": 6, "cameras": DEFAULT_CAMERAS, **kwargs})
+    return NistBC(env, seed=seed, **_factory_kwargs(env, kwargs, history=6, cameras=DEFAULT_CAMERAS))
 
 
 def nist_bc_1cam(env: gym.Env, seed: int = 0, **kwargs: Any) -> NistBC:
     """Ablation: the workspace camera only (RT-1's single camera), history 2."""
-    return NistBC(env, seed=seed, **{"history": 2, "cameras": ("workspace",), **kwargs})
+    return NistBC(env, seed=seed, **_factory_kwargs(env, kwargs, history=2, cameras=("workspace",)))
 
 
 nist_bc_h2 = nist_bc

@@ -36,7 +36,7 @@ def test_api_ablations_and_save_load(demos, tmp_path):
     with pytest.raises(ValueError, match="cameras"):
         NistBC(env, cameras=("top",))
     # continuous demos drive a tokens env through the same 0.3 mm bins
-    agent = NistBC(env, demos[:2], history=6, seed=0).learn(total_timesteps=2)
+    agent = NistBC(env, demos[:2], history=6, seed=0, policy_image_size=(16, 20)).learn(total_timesteps=2)
     obs, _ = env.reset(seed=0)
     agent.reset()
     actions = []
@@ -48,6 +48,7 @@ def test_api_ablations_and_save_load(demos, tmp_path):
     path = tmp_path / "bc.pt"
     agent.save(path)
     loaded = NistBC.load(path, env)
+    assert loaded.config["policy_image_size"] == (16, 20) and loaded.config["history"] == 6
     obs, _ = env.reset(seed=0)
     agent.reset()
     loaded.reset()

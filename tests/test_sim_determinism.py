@@ -109,3 +109,19 @@ def test_grasp_and_release_restore_inverse_mass():
     within = np.linalg.norm(b._export()["positions"] - p0, axis=1) <= 0.05
     assert ((sim2.attached[0] >= 0) == within).all() and within.sum() > 1
     assert np.isfinite(q).all()
+
+
+def test_step_frames_equals_repeated_step():
+    acts = _actions(3, 70, seed=3)
+    builders = [_variant(k) for k in range(3)]
+    a = ParticleSim(builders, num_pickers=2)
+    b = ParticleSim(builders, num_pickers=2)
+    _run(a, acts)
+    for chunk in (acts[:25], acts[25:26], acts[26:]):
+        b.step_frames(np.stack([p for p, _ in chunk]), np.stack([g for _, g in chunk]))
+    sa, sb = a.get_state(), b.get_state()
+    for k in sa:
+        assert np.array_equal(sa[k], sb[k]), k
+    single = ParticleSim(_variant(1), num_pickers=2)
+    single.step_frames(np.stack([p[1:2] for p, _ in acts]), np.stack([g[1:2] for _, g in acts]))
+    assert np.array_equal(single.positions[0], a.positions[1])

@@ -79,6 +79,9 @@ class NistInsertExpert:
         self.offset = np.zeros(2)
         if misalign:
             self.offset = (e.clearance + extra) * np.array([np.cos(angle), np.sin(angle)])
+            if e.action_mode == "tokens":  # keep the goal on the reachable lattice
+                lattice = ACTION_BIN * e.action_repeat
+                self.offset = np.round(self.offset / lattice) * lattice
         self.phase = "approach"
         self.attempts = 0
         self.recovered = False
@@ -106,11 +109,12 @@ class NistInsertExpert:
     def _goal(self, e: Any) -> np.ndarray:
         """Advance the phase machine and return the commanded-position goal."""
         hole, tip, target = e.hole_top, e.tip_position, e.commanded_target
-        tol = 0.5 * ACTION_BIN + 1e-9 if e.action_mode == "tokens" else 1e-6
+        lattice = ACTION_BIN * e.action_repeat  # smallest token motion per env step
+        tol = 0.5 * lattice + 1e-9 if e.action_mode == "tokens" else 1e-6
         above = np.array([*(hole[:2] + self.offset), hole[2] + APPROACH_HEIGHT])
         if self.phase == "approach":
             settled = np.linalg.norm(tip[:2] - target[:2]) < min(0.25 * e.clearance, 1e-4)
-            if np.all(np.abs(above[:2] - target[:2]) <= tol) and abs(above[2] - target[2]) <= 2 * ACTION_BIN and settled:
+            if np.all(np.abs(above[:2] - target[:2]) <= tol) and abs(above[2] - target[2]) <= lattice + 1e-9 and settled:
                 self.phase, self._stall, self._best_depth = "descend", 0, np.inf
             else:
                 return above

@@ -32,8 +32,8 @@ target is kept within the workspace and within 1 cm of the tip, so the contact f
 20 N per axis. Out-of-range actions are clipped (tokens to ``[0, n-1]``; tokens must be integers).
 
 Episodes: the tip starts uniformly in a 12×12×8 cm box around the target hole (±6 cm in x and y,
-1–9 cm above the board; x and y are snapped to the 0.3 mm token lattice around the hole so
-that token actions can align exactly). Success: the peg tip is within 2 mm (laterally) of
+1–9 cm above the board; x and y are snapped to the lattice of ``0.3 mm · action_repeat`` around
+the hole, so that token actions can align exactly). Success: the peg tip is within 2 mm (laterally) of
 the hole axis and within 1 mm of the hole bottom (15 mm deep). The episode terminates on success
 and is truncated after ``horizon`` steps.
 
@@ -293,7 +293,8 @@ class NistBoardInsertEnv(LfdEnv):
         self._apply_task(self._task_list.index(task))
         hole = self.hole_top
         start = np.empty(3)
-        start[:2] = hole[:2] + np.round(offset_xy / ACTION_BIN) * ACTION_BIN
+        lattice = ACTION_BIN * self.action_repeat  # reachable by token actions, see the module docstring
+        start[:2] = hole[:2] + np.round(offset_xy / lattice) * lattice
         start[2] = hole[2] + height
         mujoco.mj_resetData(self.model, self.data)
         self.data.qpos[:3] = start

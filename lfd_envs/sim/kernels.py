@@ -537,6 +537,7 @@ def solve_particles_range(
                 ri = sc_r[i]
                 if ri > 0.0:
                     off = i * max_nbr
+                    xpi = q_prev[i]
                     for tn in range(nbr_count[i]):
                         j = base + nbr[off + tn]
                         wj = w_eff[j]
@@ -552,7 +553,7 @@ def solve_particles_range(
                                 n = d / l
                                 # position-based Coulomb friction (Macklin et al. 2014): remove
                                 # (part of) the tangential displacement relative to the partner
-                                dr = (x - q_prev[i]) - (q_snap[j] - q_prev[j])
+                                dr = (x - xpi) - (q_snap[j] - q_prev[j])
                                 dtan = dr - wp.dot(dr, n) * n
                                 dtl = wp.length(dtan)
                                 if dtl > 1.0e-12:

@@ -130,7 +130,7 @@ class SimParams:
     rigid_weight_kinematic: float = 1000.0
     particle_static_friction: float = 0.5
     particle_dynamic_friction: float = 0.4
-    release_relaxation: int = 30
+    release_relaxation: int = 50
     bend_reference_spacing: float | None = 0.02
     bend_spacing_exponent: float = 2.0
 
