@@ -37,6 +37,12 @@ the hole, so that token actions can align exactly). Success: the peg tip is with
 the hole axis and within 1 mm of the hole bottom (15 mm deep). The episode terminates on success
 and is truncated after ``horizon`` steps.
 
+Contact model: the peg is a flat-bottomed cylinder that cannot tilt; holes are polygons of
+boxes (see :mod:`lfd_envs.mujoco.nist_board`). A peg laterally off the hole axis by more than the
+radial clearance lands on the board and stays there under the full 20 N press; at the full
+descent speed (about 7.5 cm/s) the soft contacts act like a chamfer of roughly 0.05–0.15 mm, so
+offsets up to about clearance + 0.1 mm may still slide in (tests use clearance + 0.3 mm).
+
 Reward: the change of performance ``p = -‖tip − hole bottom centre‖`` (metres) per step, plus
 ``success_bonus`` (1.0) on the step that succeeds. ``info["is_success"]`` is always present.
 """

@@ -6,6 +6,7 @@ Public API::
     b = SceneBuilder(); cloth = b.add_cloth(40, 40, 0.75, 0.75, center=(0, 0, 0.05))
     sim = ParticleSim(b, num_worlds=4, params=SimParams(), num_pickers=2)
     sim.step(picker_targets, grasp)   # (W, P, 3), (W, P)
+    sim.step_frames(targets, grasps)  # (F, W, P, 3), (F, W, P): F frames, same bits as F steps
 """
 
 from .builder import (BEND, SHEAR, STRETCH, ClothHandle, RigidBoxHandle, RopeHandle, SceneBuilder,

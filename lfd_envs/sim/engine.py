@@ -12,11 +12,15 @@ Pipeline of one frame (``SimParams.frame_dt``), for every substep ``h = frame_dt
       constraint colour (12 for a cloth grid, 4 for a rope): constraints of one colour share no
       particle, so every launch is race-free and deterministic;
    b. a per-particle Jacobi pass (each particle writes only itself, partners read from a
-      snapshot): self-collision, long-range tethers to pinned/grasped particles, rigid-box
+      snapshot): self-collision (with position-based cloth-on-cloth friction), long-range tethers to pinned/grasped particles, rigid-box
       contacts, ground and static boxes with continuous collision against the substep start;
    c. shape matching of the rigid boxes (one thread per box).
 4. ``collision_passes`` extra particle passes, then ``update_velocity``: ``v = (x - x_prev)/h``
    with Coulomb friction from the accumulated contact corrections and the speed clamp.
+
+A release (grasp True->False) first runs ``params.release_relaxation`` position-only solver
+iterations on the worlds concerned, so the leftover constraint error around the held particles is
+not turned into a velocity kick.  :meth:`ParticleSim.step_frames` runs many frames with one call.
 
 All worlds are stepped by the same launches (flat arrays, world = particle // N); worlds never
 interact.  The whole frame is recorded once as a Warp graph (CPU: APIC replay, CUDA: CUDA graph),
