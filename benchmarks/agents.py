@@ -99,6 +99,14 @@ def _lfd_agent(class_name: str, module: str = "lfd_agents") -> AgentFactory:
     return factory
 
 
+def _named_factory(module: str, name: str) -> AgentFactory:
+    def factory(env: gym.Env, seed: int = 0, **kwargs: Any):
+        return getattr(importlib.import_module(module), name)(env, seed, **kwargs)
+
+    factory.__doc__ = f"{module}.{name}"
+    return factory
+
+
 DEMO_CACHE = Path(__file__).resolve().parent / "results" / "_demos"
 
 
@@ -141,6 +149,9 @@ BUILTIN_AGENTS: dict[str, AgentFactory] = {
     "awac": _lfd_demo_agent("AWAC"),
     "mopa_sac": _lfd_agent("MoPASAC", "lfd_agents.mopa"),
     "mail": _lfd_agent("MAILAgent", "lfd_agents.mail"),
+    "nist_bc": _named_factory("lfd_agents.nist_bc", "nist_bc"),
+    "nist_bc_h6": _named_factory("lfd_agents.nist_bc", "nist_bc_h6"),
+    "nist_bc_1cam": _named_factory("lfd_agents.nist_bc", "nist_bc_1cam"),
 }
 
 

@@ -22,4 +22,5 @@ class ClothFoldDiagonalExpert(FoldExpert):
     @property
     def place_shift(self) -> float:  # type: ignore[override]
         # the free cloth slides along with the fold: aim shorter than on the pinned cloth
-        return -0.06 if self.task.pinned else -0.1
+        # (cloth-on-cloth friction holds the layers, so the aim is less short than before it existed)
+        return -0.03 if self.task.pinned else -0.07
