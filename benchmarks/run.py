@@ -20,6 +20,7 @@ import importlib
 import json
 import os
 import platform
+import re
 import subprocess
 import sys
 import time
@@ -51,10 +52,14 @@ class Cell:
 
     @property
     def key(self) -> str:
-        safe_agent = self.agent.replace(":", "_").replace("/", "_")
         label = self.tags.get("label")
-        env_dir = self.env_id.split(":")[-1].replace("/", "_") + (f"__{label}" if label else "")
-        return f"{self.suite}/{env_dir}/{safe_agent}/seed{self.seed}"
+        env_dir = _safe(self.env_id.split(":")[-1]) + (f"__{_safe(label)}" if label else "")
+        return f"{_safe(self.suite)}/{env_dir}/{_safe(self.agent)}/seed{self.seed}"
+
+
+def _safe(name: str) -> str:
+    """A file-name-safe version of ``name`` (letters, digits, ``._-``)."""
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", str(name)).strip("_")
 
 
 # ---------------------------------------------------------------------- suites

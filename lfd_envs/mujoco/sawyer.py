@@ -31,7 +31,7 @@ Jacobians on a private ``MjData``; the experts and users can use it for Cartesia
 
 from __future__ import annotations
 
-from typing import Any, ClassVar, Sequence
+from typing import Any, Callable, ClassVar, Sequence
 
 import mujoco
 import numpy as np
@@ -56,8 +56,19 @@ class SawyerObstacleEnv(PlanningMixin, MujocoEnv):
     """Base of the Sawyer obstructed tasks (see the module docstring).
 
     Subclasses define ``task_name``, ``init_qpos`` (nominal start pose), ``task_obs_dim``,
-    :meth:`_scene_xml` (``compose_scene_xml`` output), and the task hooks of
-    :class:`~lfd_envs.mujoco.base.MujocoEnv` (``_setup_variant``, ``_task_obs``, rewards ...).
+    ``scene_builder`` (the task module's ``scene_xml``, as a ``staticmethod``),
+    :meth:`_init_task` (task ids after the model is loaded), and the task hooks of
+    :class:`~lfd_envs.mujoco.base.MujocoEnv` (``_setup_variant``, ``_task_obs``,
+    ``_achieved_goal``/``_desired_goal``, ``_goal_reward`` ...).
+
+    Args:
+        obs_mode: ``"state"`` (``32 + task_obs_dim`` values), ``"image"`` (uint8 RGB from
+            ``task_cam``), ``"state+image"``.
+        image_size: image side or ``(height, width)``; default 84.
+        render_mode: ``"rgb_array"`` or None.
+        horizon: low-level steps per episode (250).
+        goal_conditioned: GoalEnv Dict observations for HER (``obs_mode="state"`` only).
+        robot_visual: ``"primitive"`` (robot drawn with its collision shapes, fast) or ``"mesh"``.
     """
 
     camera: ClassVar[str] = "task_cam"
@@ -67,6 +78,20 @@ class SawyerObstacleEnv(PlanningMixin, MujocoEnv):
     gripper_action: ClassVar[bool] = False
     #: finger opening held when the gripper is not part of the action (left-finger coordinate)
     finger_hold: ClassVar[float] = sm.FINGER_CLOSED
+    goal_dim: ClassVar[int] = 3
+    #: ``scene_xml(robot_meshes: bool) -> str`` of the task (set as a ``staticmethod``)
+    scene_builder: ClassVar[Callable[..., str]]
+
+    def __init__(self, obs_mode: str = "state", image_size: int | tuple[int, int] = 84,
+                 render_mode: str | None = None, horizon: int = HORIZON, goal_conditioned: bool = False,
+                 robot_visual: str = "primitive") -> None:
+        self._init_sawyer(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
+                          goal_conditioned=goal_conditioned, robot_visual=robot_visual)
+        self._init_task()
+        self._finish_init()
+
+    def _init_task(self) -> None:
+        """Task-specific setup once the model is loaded (ids of the task's bodies, sites ...)."""
 
     def _init_sawyer(self, *, obs_mode: str, image_size: Any, render_mode: str | None, horizon: int,
                      goal_conditioned: bool, robot_visual: str = "primitive") -> None:
@@ -95,7 +120,7 @@ class SawyerObstacleEnv(PlanningMixin, MujocoEnv):
         self._obs_buf = np.zeros(COMMON_OBS_DIM + self.task_obs_dim, np.float64)
 
     def _scene_xml(self) -> str:
-        raise NotImplementedError
+        return self.scene_builder(robot_meshes=self.robot_visual == "mesh")
 
     def _render(self, height: int, width: int) -> np.ndarray:
         key = (int(height), int(width))
@@ -143,6 +168,13 @@ class SawyerObstacleEnv(PlanningMixin, MujocoEnv):
     def _fingers_touch(self, geoms: np.ndarray) -> bool:
         """Both fingers touch one of ``geoms`` (MoPA-RL's grasp test)."""
         return self._touching(self._left_finger_geoms, geoms) and self._touching(self._right_finger_geoms, geoms)
+
+    # ------------------------------------------------------------------ reward
+    def _task_reward(self) -> float:
+        """The goal reward (:meth:`_goal_reward`) of the current goals and reward info."""
+        info = self._reward_info()
+        extras = {k: np.array([info[k]]) for k in self.reward_info_keys}
+        return float(self._goal_reward(self._achieved_goal()[None], self._desired_goal()[None], extras)[0])
 
     # ------------------------------------------------------------------ observation
     def _state_obs(self) -> np.ndarray:

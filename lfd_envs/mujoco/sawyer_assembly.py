@@ -36,7 +36,7 @@ from typing import ClassVar
 import numpy as np
 
 from lfd_envs.mujoco import sawyer_models as sm
-from lfd_envs.mujoco.sawyer import HORIZON, SawyerObstacleEnv, lookat_camera
+from lfd_envs.mujoco.sawyer import SawyerObstacleEnv, lookat_camera
 
 SUCCESS_DISTANCE = 0.05
 REWARD_RADIUS = 0.3
@@ -106,36 +106,23 @@ def scene_xml(robot_meshes: bool = False) -> str:
 class SawyerAssemblyObstacleEnv(SawyerObstacleEnv):
     """Sawyer inserts a held table leg into an upside-down toy table (module docstring has all details).
 
-    Args:
-        obs_mode: ``"state"`` (45-dim), ``"image"`` (uint8 RGB from ``task_cam``), ``"state+image"``.
-        image_size: image side or ``(height, width)``; default 84.
-        render_mode: ``"rgb_array"`` or None.
-        horizon: low-level steps per episode (250).
-        goal_conditioned: GoalEnv Dict observations for HER (``obs_mode="state"`` only).
-        robot_visual: ``"primitive"`` (robot drawn with its collision shapes, fast) or ``"mesh"``.
+    Constructor arguments: see :class:`~lfd_envs.mujoco.sawyer.SawyerObstacleEnv` (state
+    observation: 45 values).
     """
 
     task_name = "SawyerAssemblyObstacle"
-    goal_dim: ClassVar[int] = 3
+    scene_builder = staticmethod(scene_xml)
     ignored_contact_pairs: ClassVar[list[tuple[str, str]]] = [("furniture", "table")]
     init_qpos = INIT_QPOS
     task_obs_dim = 13
     finger_hold = 0.007  # finger pads on the leg (contacts between them are excluded)
 
-    def __init__(self, obs_mode: str = "state", image_size: int | tuple[int, int] = 84,
-                 render_mode: str | None = None, horizon: int = HORIZON, goal_conditioned: bool = False,
-                 robot_visual: str = "primitive") -> None:
-        self._init_sawyer(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
-                          goal_conditioned=goal_conditioned, robot_visual=robot_visual)
+    def _init_task(self) -> None:
         m = self.model
         self._head = m.site("leg_head").id
         self._tail = m.site("leg_tail").id
         self._hole_bottom = m.site("hole_bottom").id
         self._leg_body = m.body("leg").id
-        self._finish_init()
-
-    def _scene_xml(self) -> str:
-        return scene_xml(robot_meshes=self.robot_visual == "mesh")
 
     def _setup_variant(self, rng: np.random.Generator) -> None:
         self._reset_robot()
@@ -172,9 +159,6 @@ class SawyerAssemblyObstacleEnv(SawyerObstacleEnv):
 
     def _goal_success(self, achieved: np.ndarray, desired: np.ndarray) -> np.ndarray:
         return np.linalg.norm(achieved - desired, axis=-1) <= SUCCESS_DISTANCE
-
-    def _task_reward(self) -> float:
-        return float(self._goal_reward(self.leg_head()[None], self.hole_bottom()[None], {})[0])
 
     def _achieved_goal(self) -> np.ndarray:
         return self.leg_head()

@@ -38,7 +38,7 @@ import mujoco
 import numpy as np
 
 from lfd_envs.mujoco import sawyer_models as sm
-from lfd_envs.mujoco.sawyer import HORIZON, SawyerObstacleEnv, lookat_camera
+from lfd_envs.mujoco.sawyer import SawyerObstacleEnv, lookat_camera
 
 BIN_CENTER = (0.5, -0.25)
 BIN_FLOOR_Z = 0.82
@@ -81,17 +81,12 @@ def scene_xml(robot_meshes: bool = False) -> str:
 class SawyerLiftObstacleEnv(SawyerObstacleEnv):
     """Sawyer grasps a can in a deep bin and lifts it out (module docstring has all details).
 
-    Args:
-        obs_mode: ``"state"`` (45-dim), ``"image"`` (uint8 RGB from ``task_cam``), ``"state+image"``.
-        image_size: image side or ``(height, width)``; default 84.
-        render_mode: ``"rgb_array"`` or None.
-        horizon: low-level steps per episode (250).
-        goal_conditioned: GoalEnv Dict observations for HER (``obs_mode="state"`` only).
-        robot_visual: ``"primitive"`` (robot drawn with its collision shapes, fast) or ``"mesh"``.
+    Constructor arguments: see :class:`~lfd_envs.mujoco.sawyer.SawyerObstacleEnv` (state
+    observation: 45 values).
     """
 
     task_name = "SawyerLiftObstacle"
-    goal_dim: ClassVar[int] = 3
+    scene_builder = staticmethod(scene_xml)
     reward_info_keys: ClassVar[tuple[str, ...]] = ("reach_reward", "grasped")
     ignored_contact_pairs: ClassVar[list[tuple[str, str]]] = [
         ("can", "table"), ("can", "bin_floor"),
@@ -101,20 +96,12 @@ class SawyerLiftObstacleEnv(SawyerObstacleEnv):
     gripper_action = True
     finger_hold = sm.FINGER_OPEN
 
-    def __init__(self, obs_mode: str = "state", image_size: int | tuple[int, int] = 84,
-                 render_mode: str | None = None, horizon: int = HORIZON, goal_conditioned: bool = False,
-                 robot_visual: str = "primitive") -> None:
-        self._init_sawyer(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
-                          goal_conditioned=goal_conditioned, robot_visual=robot_visual)
+    def _init_task(self) -> None:
         m = self.model
         self._can_qadr = int(m.jnt_qposadr[m.joint("can_joint").id])
         self._can_geom = np.array([m.geom("can").id])
         self._target = np.array([BIN_CENTER[0], BIN_CENTER[1], TARGET_Z])
         self._grasped = False
-        self._finish_init()
-
-    def _scene_xml(self) -> str:
-        return scene_xml(robot_meshes=self.robot_visual == "mesh")
 
     # ------------------------------------------------------------------ variant and control
     def _setup_variant(self, rng: np.random.Generator) -> None:
@@ -186,11 +173,6 @@ class SawyerLiftObstacleEnv(SawyerObstacleEnv):
 
     def _goal_success(self, achieved: np.ndarray, desired: np.ndarray) -> np.ndarray:
         return achieved[:, 2] >= desired[:, 2] - (TARGET_Z - SUCCESS_Z)
-
-    def _task_reward(self) -> float:
-        info = self._reward_info()
-        extras = {k: np.array([info[k]]) for k in self.reward_info_keys}
-        return float(self._goal_reward(self.can_pos()[None], self._target[None], extras)[0])
 
     def _achieved_goal(self) -> np.ndarray:
         return self.can_pos()

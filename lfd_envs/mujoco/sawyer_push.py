@@ -31,7 +31,7 @@ from typing import ClassVar
 import numpy as np
 
 from lfd_envs.mujoco import sawyer_models as sm
-from lfd_envs.mujoco.sawyer import HORIZON, SawyerObstacleEnv, lookat_camera
+from lfd_envs.mujoco.sawyer import SawyerObstacleEnv, lookat_camera
 
 SUCCESS_DISTANCE = 0.05
 CUBE_HALF = 0.03
@@ -72,35 +72,22 @@ def scene_xml(robot_meshes: bool = False) -> str:
 class SawyerPushObstacleEnv(SawyerObstacleEnv):
     """Sawyer pushes a cube inside a tunnel to a goal (module docstring has all details).
 
-    Args:
-        obs_mode: ``"state"`` (47-dim), ``"image"`` (uint8 RGB from ``task_cam``), ``"state+image"``.
-        image_size: image side or ``(height, width)``; default 84.
-        render_mode: ``"rgb_array"`` or None.
-        horizon: low-level steps per episode (250).
-        goal_conditioned: GoalEnv Dict observations for HER (``obs_mode="state"`` only).
-        robot_visual: ``"primitive"`` (robot drawn with its collision shapes, fast) or ``"mesh"``.
+    Constructor arguments: see :class:`~lfd_envs.mujoco.sawyer.SawyerObstacleEnv` (state
+    observation: 47 values).
     """
 
     task_name = "SawyerPushObstacle"
-    goal_dim: ClassVar[int] = 3
+    scene_builder = staticmethod(scene_xml)
     reward_info_keys: ClassVar[tuple[str, ...]] = ("reach_reward",)
     ignored_contact_pairs: ClassVar[list[tuple[str, str]]] = [("cube", "table"), ("cube", "tunnel")]
     init_qpos = INIT_QPOS
     task_obs_dim = 15
 
-    def __init__(self, obs_mode: str = "state", image_size: int | tuple[int, int] = 84,
-                 render_mode: str | None = None, horizon: int = HORIZON, goal_conditioned: bool = False,
-                 robot_visual: str = "primitive") -> None:
-        self._init_sawyer(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
-                          goal_conditioned=goal_conditioned, robot_visual=robot_visual)
+    def _init_task(self) -> None:
         m = self.model
         self._cube_body = m.body("cube").id
         self._cube_qadr = int(m.jnt_qposadr[m.joint("cube_joint").id])
         self._goal = np.array(GOAL_NOMINAL)
-        self._finish_init()
-
-    def _scene_xml(self) -> str:
-        return scene_xml(robot_meshes=self.robot_visual == "mesh")
 
     # ------------------------------------------------------------------ variant
     def _setup_variant(self, rng: np.random.Generator) -> None:
@@ -152,10 +139,6 @@ class SawyerPushObstacleEnv(SawyerObstacleEnv):
 
     def _goal_success(self, achieved: np.ndarray, desired: np.ndarray) -> np.ndarray:
         return np.linalg.norm(achieved[:, :2] - desired[:, :2], axis=-1) < SUCCESS_DISTANCE
-
-    def _task_reward(self) -> float:
-        extras = {"reach_reward": np.array([self._reach_reward()])}
-        return float(self._goal_reward(self.cube_pos()[None], self._goal[None], extras)[0])
 
     def _achieved_goal(self) -> np.ndarray:
         return self.cube_pos()

@@ -25,6 +25,7 @@ Batches: give positions as ``(W, N, 3)`` numpy arrays or flat ``wp.array(dtype=w
 See :class:`Renderer` for the options and :mod:`lfd_envs.render.scene` for the layer formats.
 """
 
+from lfd_envs import _warp  # noqa: F401  (quiet Warp before first use)
 from .camera import Camera
 from .image_io import save_png, tile_images
 from .renderer import DEFAULT_CAMERA, Renderer

@@ -9,6 +9,7 @@ Public API::
     sim.step_frames(targets, grasps)  # (F, W, P, 3), (F, W, P): F frames, same bits as F steps
 """
 
+from lfd_envs import _warp  # noqa: F401  (quiet Warp before first use)
 from .builder import (BEND, SHEAR, STRETCH, ClothHandle, RigidBoxHandle, RopeHandle, SceneBuilder,
                       StaticBox)
 from .engine import ParticleSim

@@ -104,49 +104,6 @@ def box_contact(x: wp.vec3, xp: wp.vec3, r: float, c: wp.vec3, rot: wp.mat33, he
 
 
 # ----------------------------------------------------------------------------- substep start
-@wp.func
-def predict_range(
-    lo: int,
-    hi: int,
-    q: wp.array(dtype=wp.vec3),
-    q_prev: wp.array(dtype=wp.vec3),
-    v: wp.array(dtype=wp.vec3),
-    inv_mass: wp.array(dtype=float),
-    attach: wp.array(dtype=wp.int32),
-    attach_off: wp.array(dtype=wp.vec3),
-    pick_start: wp.array(dtype=wp.vec3),
-    pick_end: wp.array(dtype=wp.vec3),
-    fric: wp.array(dtype=wp.vec3),
-    w_eff: wp.array(dtype=float),
-    num_particles: int,
-    num_pickers: int,
-    alpha: float,
-    gravity: float,
-    dt: float,
-    damp: float,
-    max_speed: float,
-):
-    for i in range(lo, hi):
-        xp = q[i]
-        q_prev[i] = xp
-        fric[i] = wp.vec3(0.0, 0.0, 0.0)
-        a = attach[i]
-        wi = inv_mass[i]
-        if a >= 0:
-            wi = 0.0
-        w_eff[i] = wi
-        if a >= 0:
-            k = (i // num_particles) * num_pickers + a
-            q[i] = wp.lerp(pick_start[k], pick_end[k], alpha) + attach_off[i]
-        elif wi > 0.0:
-            vi = (v[i] + wp.vec3(0.0, 0.0, gravity * dt)) * damp
-            s = wp.length(vi)
-            if s > max_speed:
-                vi = vi * (max_speed / s)
-            v[i] = vi
-            q[i] = xp + vi * dt
-
-
 @wp.kernel
 def predict(
     q: wp.array(dtype=wp.vec3),
@@ -169,17 +126,34 @@ def predict(
     total: int,
     chunk: int,
 ):
-    """Kernel wrapper of :func:`predict_range` (see there)."""
+    """Substep start: remember the substep-start positions, clear the friction accumulators,
+    move grasped particles with their picker (interpolated by ``alpha``) and integrate free
+    particles (gravity, damping, speed clamp)."""
     tid = wp.tid()
-    predict_range(tid * chunk, wp.min(tid * chunk + chunk, total), q, q_prev, v, inv_mass, attach, attach_off,
-                  pick_start, pick_end, fric, w_eff, num_particles, num_pickers, alpha, gravity, dt, damp,
-                  max_speed)
+    for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
+        xp = q[i]
+        q_prev[i] = xp
+        fric[i] = wp.vec3(0.0, 0.0, 0.0)
+        a = attach[i]
+        wi = inv_mass[i]
+        if a >= 0:
+            wi = 0.0
+        w_eff[i] = wi
+        if a >= 0:
+            k = (i // num_particles) * num_pickers + a
+            q[i] = wp.lerp(pick_start[k], pick_end[k], alpha) + attach_off[i]
+        elif wi > 0.0:
+            vi = (v[i] + wp.vec3(0.0, 0.0, gravity * dt)) * damp
+            s = wp.length(vi)
+            if s > max_speed:
+                vi = vi * (max_speed / s)
+            v[i] = vi
+            q[i] = xp + vi * dt
 
 
 # ----------------------------------------------------------------------------- neighbour search
-@wp.func
-def build_grid_world(
-    w: int,
+@wp.kernel
+def build_grid(
     q: wp.array(dtype=wp.vec3),
     sc_r: wp.array(dtype=float),
     grid_params: wp.array(dtype=float),
@@ -192,6 +166,7 @@ def build_grid_world(
     sorted_r: wp.array(dtype=float),
 ):
     """Counting sort of one world's self-colliding particles into a spatial hash (one thread per world)."""
+    w = wp.tid()
     inv_h = 1.0 / grid_params[0]
     mask = table_size - 1
     base = w * num_particles
@@ -223,26 +198,7 @@ def build_grid_world(
 
 
 @wp.kernel
-def build_grid(
-    q: wp.array(dtype=wp.vec3),
-    sc_r: wp.array(dtype=float),
-    grid_params: wp.array(dtype=float),
-    num_particles: int,
-    table_size: int,
-    cell_start: wp.array(dtype=wp.int32),
-    cell_end: wp.array(dtype=wp.int32),
-    sorted_idx: wp.array(dtype=wp.int32),
-    sorted_q: wp.array(dtype=wp.vec3),
-    sorted_r: wp.array(dtype=float),
-):
-    """Kernel wrapper of :func:`build_grid_world` (see there)."""
-    build_grid_world(wp.tid(), q, sc_r, grid_params, num_particles, table_size, cell_start, cell_end, sorted_idx, sorted_q, sorted_r)
-
-
-@wp.func
-def build_neighbors_range(
-    lo: int,
-    hi: int,
+def build_neighbors(
     q: wp.array(dtype=wp.vec3),
     sc_r: wp.array(dtype=float),
     obj: wp.array(dtype=wp.int32),
@@ -259,6 +215,8 @@ def build_neighbors_range(
     nbr: wp.array(dtype=wp.int32),
     nbr_d: wp.array(dtype=float),
     nbr_count: wp.array(dtype=wp.int32),
+    total: int,
+    chunk: int,
 ):
     """Per particle: the ``max_nbr`` closest self-collision candidates, sorted by (distance, index).
 
@@ -266,7 +224,8 @@ def build_neighbors_range(
     whether a world is simulated alone or in a batch.  Pairs of the same object whose rest
     distance is below their collision distance are filtered (FleX SelfCollideFilter).
     """
-    for i in range(lo, hi):
+    tid = wp.tid()
+    for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
         ri = sc_r[i]
         if ri <= 0.0:
             nbr_count[i] = 0
@@ -342,32 +301,6 @@ def build_neighbors_range(
         nbr_count[i] = count
 
 
-@wp.kernel
-def build_neighbors(
-    q: wp.array(dtype=wp.vec3),
-    sc_r: wp.array(dtype=float),
-    obj: wp.array(dtype=wp.int32),
-    rest: wp.array(dtype=wp.vec3),
-    grid_params: wp.array(dtype=float),
-    num_particles: int,
-    table_size: int,
-    max_nbr: int,
-    cell_start: wp.array(dtype=wp.int32),
-    cell_end: wp.array(dtype=wp.int32),
-    sorted_idx: wp.array(dtype=wp.int32),
-    sorted_q: wp.array(dtype=wp.vec3),
-    sorted_r: wp.array(dtype=float),
-    nbr: wp.array(dtype=wp.int32),
-    nbr_d: wp.array(dtype=float),
-    nbr_count: wp.array(dtype=wp.int32),
-    total: int,
-    chunk: int,
-):
-    """Kernel wrapper of :func:`build_neighbors_range` (see there)."""
-    tid = wp.tid()
-    build_neighbors_range(tid * chunk, wp.min(tid * chunk + chunk, total), q, sc_r, obj, rest, grid_params, num_particles, table_size, max_nbr, cell_start, cell_end, sorted_idx, sorted_q, sorted_r, nbr, nbr_d, nbr_count)
-
-
 # ----------------------------------------------------------------------------- solver
 @wp.func
 def project_distance(xi: wp.vec3, xj: wp.vec3, wi: float, wj: float, k: float, rest: float):
@@ -410,61 +343,6 @@ def solve_constraints(
     q[j] = xj
 
 
-@wp.func
-def solve_color_world(
-    w: int,
-    con_ij: wp.array(dtype=wp.vec2i),
-    con_rest: wp.array(dtype=float),
-    con_kscale: wp.array(dtype=float),
-    stiffness: float,
-    color_offset: int,
-    color_count: int,
-    num_cons: int,
-    num_particles: int,
-    q: wp.array(dtype=wp.vec3),
-    w_eff: wp.array(dtype=float),
-):
-    """Project the constraints of one colour of world ``w`` in order.  Unrolled by four: the
-    particles of four constraints are loaded before any is stored (constraints of one colour
-    share no particle, so this is the same arithmetic with more instruction-level parallelism)."""
-    base = w * num_particles
-    rbase = w * num_cons
-    n4 = color_count // 4
-    for t in range(n4):
-        c = color_offset + 4 * t
-        ij0 = con_ij[c]
-        ij1 = con_ij[c + 1]
-        ij2 = con_ij[c + 2]
-        ij3 = con_ij[c + 3]
-        i0 = base + ij0[0]
-        j0 = base + ij0[1]
-        i1 = base + ij1[0]
-        j1 = base + ij1[1]
-        i2 = base + ij2[0]
-        j2 = base + ij2[1]
-        i3 = base + ij3[0]
-        j3 = base + ij3[1]
-        a0, b0 = project_distance(q[i0], q[j0], w_eff[i0], w_eff[j0], stiffness * con_kscale[rbase + c], con_rest[rbase + c])
-        a1, b1 = project_distance(q[i1], q[j1], w_eff[i1], w_eff[j1], stiffness * con_kscale[rbase + c + 1], con_rest[rbase + c + 1])
-        a2, b2 = project_distance(q[i2], q[j2], w_eff[i2], w_eff[j2], stiffness * con_kscale[rbase + c + 2], con_rest[rbase + c + 2])
-        a3, b3 = project_distance(q[i3], q[j3], w_eff[i3], w_eff[j3], stiffness * con_kscale[rbase + c + 3], con_rest[rbase + c + 3])
-        q[i0] = a0
-        q[j0] = b0
-        q[i1] = a1
-        q[j1] = b1
-        q[i2] = a2
-        q[j2] = b2
-        q[i3] = a3
-        q[j3] = b3
-    for c in range(color_offset + 4 * n4, color_offset + color_count):
-        ij = con_ij[c]
-        i = base + ij[0]
-        j = base + ij[1]
-        xi, xj = project_distance(q[i], q[j], w_eff[i], w_eff[j], stiffness * con_kscale[rbase + c], con_rest[rbase + c])
-        q[i] = xi
-        q[j] = xj
-
-
 @wp.kernel
 def solve_constraints_serial(
     con_ij: wp.array(dtype=wp.vec2i),
@@ -480,16 +358,51 @@ def solve_constraints_serial(
     num_worlds: int,
 ):
     """Same as :func:`solve_constraints` with one thread looping over all worlds and constraints
-    of the colour (CPU variant: CPU launches are serial, and this avoids per-thread overhead)."""
+    of the colour, in order (CPU variant: CPU launches are serial, and this avoids per-thread
+    overhead).  Unrolled by four: the particles of four constraints are loaded before any is
+    stored (constraints of one colour share no particle, so this is the same arithmetic with
+    more instruction-level parallelism)."""
     for w in range(num_worlds):
-        solve_color_world(w, con_ij, con_rest, con_kscale, stiffness, color_offset, color_count, num_cons,
-                          num_particles, q, w_eff)
+        base = w * num_particles
+        rbase = w * num_cons
+        n4 = color_count // 4
+        for t in range(n4):
+            c = color_offset + 4 * t
+            ij0 = con_ij[c]
+            ij1 = con_ij[c + 1]
+            ij2 = con_ij[c + 2]
+            ij3 = con_ij[c + 3]
+            i0 = base + ij0[0]
+            j0 = base + ij0[1]
+            i1 = base + ij1[0]
+            j1 = base + ij1[1]
+            i2 = base + ij2[0]
+            j2 = base + ij2[1]
+            i3 = base + ij3[0]
+            j3 = base + ij3[1]
+            a0, b0 = project_distance(q[i0], q[j0], w_eff[i0], w_eff[j0], stiffness * con_kscale[rbase + c], con_rest[rbase + c])
+            a1, b1 = project_distance(q[i1], q[j1], w_eff[i1], w_eff[j1], stiffness * con_kscale[rbase + c + 1], con_rest[rbase + c + 1])
+            a2, b2 = project_distance(q[i2], q[j2], w_eff[i2], w_eff[j2], stiffness * con_kscale[rbase + c + 2], con_rest[rbase + c + 2])
+            a3, b3 = project_distance(q[i3], q[j3], w_eff[i3], w_eff[j3], stiffness * con_kscale[rbase + c + 3], con_rest[rbase + c + 3])
+            q[i0] = a0
+            q[j0] = b0
+            q[i1] = a1
+            q[j1] = b1
+            q[i2] = a2
+            q[j2] = b2
+            q[i3] = a3
+            q[j3] = b3
+        for c in range(color_offset + 4 * n4, color_offset + color_count):
+            ij = con_ij[c]
+            i = base + ij[0]
+            j = base + ij[1]
+            xi, xj = project_distance(q[i], q[j], w_eff[i], w_eff[j], stiffness * con_kscale[rbase + c], con_rest[rbase + c])
+            q[i] = xi
+            q[j] = xj
 
 
-@wp.func
-def solve_particles_range(
-    lo: int,
-    hi: int,
+@wp.kernel
+def solve_particles(
     num_particles: int,
     q: wp.array(dtype=wp.vec3),
     q_snap: wp.array(dtype=wp.vec3),
@@ -519,11 +432,14 @@ def solve_particles_range(
     fric: wp.array(dtype=wp.vec3),
     tether_anchor: wp.array(dtype=wp.int32),
     tether_len: wp.array(dtype=float),
+    total: int,
+    chunk: int,
 ):
     """Per-particle pass (Jacobi: partners are read from the snapshot ``q_snap``, each particle
     writes only itself): self-collision pairs, tethers, rigid boxes, ground and static boxes
     (with continuous collision against the substep start), friction bookkeeping."""
-    for i in range(lo, hi):
+    tid = wp.tid()
+    for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
         wi = w_eff[i]
         if wi == 0.0 and (attach[i] < 0 or skip_kinematic != 0):
             continue  # pinned (or, in a release relaxation, any kinematic particle)
@@ -603,47 +519,7 @@ def solve_particles_range(
 
 
 @wp.kernel
-def solve_particles(
-    num_particles: int,
-    q: wp.array(dtype=wp.vec3),
-    q_snap: wp.array(dtype=wp.vec3),
-    q_prev: wp.array(dtype=wp.vec3),
-    w_eff: wp.array(dtype=float),
-    attach: wp.array(dtype=wp.int32),
-    radius: wp.array(dtype=float),
-    box_of: wp.array(dtype=wp.int32),
-    sc_on: int,
-    sc_r: wp.array(dtype=float),
-    sc_relax: float,
-    sc_mu_s: float,
-    sc_mu_k: float,
-    skip_kinematic: int,
-    max_nbr: int,
-    nbr: wp.array(dtype=wp.int32),
-    nbr_count: wp.array(dtype=wp.int32),
-    num_static: int,
-    sbox_pos: wp.array(dtype=wp.vec3),
-    sbox_rot: wp.array(dtype=wp.mat33),
-    sbox_he: wp.array(dtype=wp.vec3),
-    num_boxes: int,
-    box_pos: wp.array(dtype=wp.vec3),
-    box_rot: wp.array(dtype=wp.mat33),
-    box_he: wp.array(dtype=wp.vec3),
-    box_kin: wp.array(dtype=wp.int32),
-    fric: wp.array(dtype=wp.vec3),
-    tether_anchor: wp.array(dtype=wp.int32),
-    tether_len: wp.array(dtype=float),
-    total: int,
-    chunk: int,
-):
-    """Kernel wrapper of :func:`solve_particles_range` (see there)."""
-    tid = wp.tid()
-    solve_particles_range(tid * chunk, wp.min(tid * chunk + chunk, total), num_particles, q, q_snap, q_prev, w_eff, attach, radius, box_of, sc_on, sc_r, sc_relax, sc_mu_s, sc_mu_k, skip_kinematic, max_nbr, nbr, nbr_count, num_static, sbox_pos, sbox_rot, sbox_he, num_boxes, box_pos, box_rot, box_he, box_kin, fric, tether_anchor, tether_len)
-
-
-@wp.func
-def shape_match_box(
-    kb: int,
+def shape_match(
     q: wp.array(dtype=wp.vec3),
     rest: wp.array(dtype=wp.vec3),
     inv_mass: wp.array(dtype=float),
@@ -662,6 +538,7 @@ def shape_match_box(
     rest shape onto the current particles (grasped/pinned particles weigh ``kin_weight``), then
     free particles are moved onto the rigid shape.  Rotation by warm-started iterative extraction
     (Mueller et al. 2016) so it is smooth and deterministic."""
+    kb = wp.tid()
     w = kb // num_boxes
     b = kb - w * num_boxes
     start = w * num_particles + rigid_start[b]
@@ -715,31 +592,9 @@ def shape_match_box(
             q[i] = c + R * (rest[i] - c0)
 
 
-@wp.kernel
-def shape_match(
-    q: wp.array(dtype=wp.vec3),
-    rest: wp.array(dtype=wp.vec3),
-    inv_mass: wp.array(dtype=float),
-    attach: wp.array(dtype=wp.int32),
-    rigid_start: wp.array(dtype=wp.int32),
-    rigid_count: wp.array(dtype=wp.int32),
-    num_particles: int,
-    num_boxes: int,
-    kin_weight: float,
-    box_quat: wp.array(dtype=wp.quat),
-    box_pos: wp.array(dtype=wp.vec3),
-    box_rot: wp.array(dtype=wp.mat33),
-    box_kin: wp.array(dtype=wp.int32),
-):
-    """Kernel wrapper of :func:`shape_match_box` (see there)."""
-    shape_match_box(wp.tid(), q, rest, inv_mass, attach, rigid_start, rigid_count, num_particles, num_boxes, kin_weight, box_quat, box_pos, box_rot, box_kin)
-
-
 # ----------------------------------------------------------------------------- substep end
-@wp.func
-def update_velocity_range(
-    lo: int,
-    hi: int,
+@wp.kernel
+def update_velocity(
     q: wp.array(dtype=wp.vec3),
     q_prev: wp.array(dtype=wp.vec3),
     v: wp.array(dtype=wp.vec3),
@@ -750,8 +605,14 @@ def update_velocity_range(
     mu_s: float,
     mu_k: float,
     max_speed: float,
+    total: int,
+    chunk: int,
 ):
-    for i in range(lo, hi):
+    """Substep end: velocities from the position change, with the accumulated contact corrections
+    applied as Coulomb friction (``mu_s``/``mu_k``), clamped to ``max_speed``; pinned particles
+    get zero velocity."""
+    tid = wp.tid()
+    for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
         att = attach[i]
         if att < 0 and inv_mass[i] == 0.0:
             v[i] = wp.vec3(0.0, 0.0, 0.0)
@@ -775,26 +636,6 @@ def update_velocity_range(
         if s > max_speed:
             vi = vi * (max_speed / s)
         v[i] = vi
-
-
-@wp.kernel
-def update_velocity(
-    q: wp.array(dtype=wp.vec3),
-    q_prev: wp.array(dtype=wp.vec3),
-    v: wp.array(dtype=wp.vec3),
-    inv_mass: wp.array(dtype=float),
-    attach: wp.array(dtype=wp.int32),
-    fric: wp.array(dtype=wp.vec3),
-    inv_dt: float,
-    mu_s: float,
-    mu_k: float,
-    max_speed: float,
-    total: int,
-    chunk: int,
-):
-    """Kernel wrapper of :func:`update_velocity_range` (see there)."""
-    tid = wp.tid()
-    update_velocity_range(tid * chunk, wp.min(tid * chunk + chunk, total), q, q_prev, v, inv_mass, attach, fric, inv_dt, mu_s, mu_k, max_speed)
 
 
 # ----------------------------------------------------------------------------- tethers

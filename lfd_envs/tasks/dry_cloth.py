@@ -37,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 from lfd_envs.tasks.cloth_task import ClothTask
-from lfd_envs.tasks.particle_env import ParticleEnv, ParticleVectorEnv
+from lfd_envs.tasks.particle_env import PickPlaceParticleEnv, PickPlaceParticleVectorEnv
 from lfd_envs.tasks.particle_task import Context, TaskVariant
 from lfd_envs.tasks.picker_actions import PickPlaceSchedule, Workspace
 
@@ -184,26 +184,13 @@ class DryClothTask(ClothTask):
         return pick, place
 
 
-class DryClothEnv(ParticleEnv):
+class DryClothEnv(PickPlaceParticleEnv):
     """DryCloth-v0 (see :mod:`lfd_envs.tasks.dry_cloth`); default action mode ``pick_place``."""
 
     task_class = DryClothTask
 
-    def __init__(self, num_pickers: int | None = None, action_mode: str = "pick_place", obs_mode: str | None = None,
-                 image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
-                 render_mode: str | None = None, horizon: int | None = None) -> None:
-        self._setup(dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode, image_size,
-                    device, render_mode, horizon)
 
-
-class DryClothVectorEnv(ParticleVectorEnv):
+class DryClothVectorEnv(PickPlaceParticleVectorEnv):
     """Batched DryCloth-v0 (one engine call per frame for all worlds)."""
 
     task_class = DryClothTask
-
-    def __init__(self, num_envs: int = 1, num_pickers: int | None = None, action_mode: str = "pick_place",
-                 obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
-                 resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
-                 horizon: int | None = None) -> None:
-        self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode,
-                    image_size, device, render_mode, horizon)

@@ -24,7 +24,8 @@ Constructor arguments (both): ``num_pickers`` (1..4, task default), ``action_mod
 cloth side / rope particles), ``device`` (Warp device, default ``"cpu"``), ``render_mode``
 (``"rgb_array"`` or None), ``horizon`` (default from the task per action mode); plus
 task options such as ``pinned``. ``particles`` observations are ``(N + P, 3)``: every particle,
-then the pickers.
+then the pickers. Tasks whose default action mode is ``"pick_place"`` derive from
+:class:`PickPlaceParticleEnv` / :class:`PickPlaceParticleVectorEnv` instead.
 """
 
 from __future__ import annotations
@@ -44,7 +45,8 @@ from lfd_envs.tasks.particle_batch import ParticleBatch
 from lfd_envs.tasks.particle_task import ParticleTask
 from lfd_envs.tasks.picker_actions import ACTION_MODES
 
-__all__ = ["ParticleEnv", "ParticleVectorEnv", "PARTICLE_OBS_MODES"]
+__all__ = ["ParticleEnv", "ParticleVectorEnv", "PickPlaceParticleEnv", "PickPlaceParticleVectorEnv",
+           "PARTICLE_OBS_MODES"]
 
 PARTICLE_OBS_MODES = OBS_MODES + ("particles",)
 #: bound (m) of the position entries of state and particle observations
@@ -386,3 +388,24 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
         for key in infos:
             out[f"_{key}"] = np.ones(n, dtype=bool)
         return out
+
+
+class PickPlaceParticleEnv(ParticleEnv):
+    """:class:`ParticleEnv` whose default action mode is ``"pick_place"``."""
+
+    def __init__(self, num_pickers: int | None = None, action_mode: str = "pick_place", obs_mode: str | None = None,
+                 image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
+                 render_mode: str | None = None, horizon: int | None = None) -> None:
+        self._setup(dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode, image_size,
+                    device, render_mode, horizon)
+
+
+class PickPlaceParticleVectorEnv(ParticleVectorEnv):
+    """:class:`ParticleVectorEnv` whose default action mode is ``"pick_place"``."""
+
+    def __init__(self, num_envs: int = 1, num_pickers: int | None = None, action_mode: str = "pick_place",
+                 obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
+                 resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
+                 horizon: int | None = None) -> None:
+        self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode,
+                    image_size, device, render_mode, horizon)

@@ -32,7 +32,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from lfd_envs.tasks.particle_env import ParticleEnv, ParticleVectorEnv
+from lfd_envs.tasks.particle_env import PickPlaceParticleEnv, PickPlaceParticleVectorEnv
 from lfd_envs.tasks.particle_task import Context, ParticleTask, TaskVariant
 from lfd_envs.tasks.picker_actions import PickPlaceSchedule, Workspace
 
@@ -261,26 +261,13 @@ class ThreeBoxesTask(ParticleTask):
         return bool(over and centers[upper, 2] - he[upper, 2] >= centers[lower, 2] + he[lower, 2] - 0.01)
 
 
-class ThreeBoxesEnv(ParticleEnv):
+class ThreeBoxesEnv(PickPlaceParticleEnv):
     """ThreeBoxes-v0 (see :mod:`lfd_envs.tasks.three_boxes`); default action mode ``pick_place``."""
 
     task_class = ThreeBoxesTask
 
-    def __init__(self, num_pickers: int | None = None, action_mode: str = "pick_place", obs_mode: str | None = None,
-                 image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
-                 render_mode: str | None = None, horizon: int | None = None) -> None:
-        self._setup(dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode, image_size,
-                    device, render_mode, horizon)
 
-
-class ThreeBoxesVectorEnv(ParticleVectorEnv):
+class ThreeBoxesVectorEnv(PickPlaceParticleVectorEnv):
     """Batched ThreeBoxes-v0 (one engine call per frame for all worlds)."""
 
     task_class = ThreeBoxesTask
-
-    def __init__(self, num_envs: int = 1, num_pickers: int | None = None, action_mode: str = "pick_place",
-                 obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
-                 resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
-                 horizon: int | None = None) -> None:
-        self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode,
-                    image_size, device, render_mode, horizon)
