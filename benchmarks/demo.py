@@ -21,6 +21,7 @@ def render_scenes(out_dir: Path = IMAGES) -> list[Path]:
     import gymnasium as gym
 
     import lfd_envs
+    from lfd_envs.core.rollout import finish_episode
     from lfd_envs.experts import make_expert
     from lfd_envs.render import save_png
 
@@ -36,11 +37,7 @@ def render_scenes(out_dir: Path = IMAGES) -> list[Path]:
         start = env.render()
         expert = make_expert(env)
         expert.reset()
-        done, info = False, {}
-        while not done:
-            action, _ = expert.predict(obs, deterministic=True)
-            obs, _, terminated, truncated, info = env.step(action)
-            done = terminated or truncated
+        info = finish_episode(env, expert, obs)
         name = env_id.split("-v")[0]
         for tag, frame in (("start", start), ("expert", env.render())):
             path = out_dir / f"{name}_{tag}.png"

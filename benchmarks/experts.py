@@ -69,6 +69,7 @@ def evaluate_expert(env_id: str, num_variants: int, num_pickers: int | None = No
     import gymnasium as gym
 
     import lfd_envs  # noqa: F401  (registers the ids)
+    from lfd_envs.core.rollout import play_episode
     from lfd_envs.experts import make_expert
 
     kwargs: dict[str, Any] = {"action_mode": action_mode, "obs_mode": "state"}
@@ -80,13 +81,7 @@ def evaluate_expert(env_id: str, num_variants: int, num_pickers: int | None = No
     expert = make_expert(env)
     scores = []
     for k in range(first_variant, first_variant + num_variants):
-        obs, info = env.reset(seed=seed, options={"variant": k, "split": split})
-        expert.reset()
-        done = False
-        while not done:
-            action, _ = expert.predict(obs, deterministic=True)
-            obs, _, terminated, truncated, info = env.step(action)
-            done = terminated or truncated
+        info = play_episode(env, expert, seed=seed, options={"variant": k, "split": split})
         scores.append(info["normalized_performance"])
     env.close()
     return np.asarray(scores, dtype=np.float64)

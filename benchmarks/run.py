@@ -132,19 +132,14 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
 # ---------------------------------------------------------------------- running
 def evaluate(agent: Any, env, episodes: int, seed: int) -> list[float]:
     """Final normalised performance p̂(H) of ``agent`` on eval variants ``0..episodes-1``."""
+    from lfd_envs.core.rollout import play_episode
+
     if hasattr(agent, "bind"):
         agent.bind(env)
     n_eval = env.unwrapped.variants.size("eval") if hasattr(env.unwrapped, "variants") else episodes
     finals = []
     for k in range(episodes):
-        obs, info = env.reset(seed=seed * 100_003 + k, options={"split": "eval", "variant": k % n_eval})
-        if hasattr(agent, "reset"):
-            agent.reset()
-        done = False
-        while not done:
-            action, _ = agent.predict(obs, deterministic=True)
-            obs, _, terminated, truncated, info = env.step(action)
-            done = terminated or truncated
+        info = play_episode(env, agent, seed=seed * 100_003 + k, options={"split": "eval", "variant": k % n_eval})
         finals.append(float(info["normalized_performance"]))
     return finals
 

@@ -32,7 +32,7 @@ from torch import nn
 from lfd_agents.augment import augment_observations, image_keys
 from lfd_agents.demos import fill_replay_buffer, load_episodes
 from lfd_agents.dmfd import DMfD
-from lfd_agents.networks import GaussianActor, ImageEncoder, KeySubsetExtractor
+from lfd_agents.networks import DictPolicyDefaults, GaussianActor, ImagePolicyDefaults
 
 
 # ----------------------------------------------------------------------------------- SAC-LfD
@@ -141,24 +141,12 @@ class BCPolicy(BasePolicy):
         return self.actor.distribution(obs).mean
 
 
-class BCCnnPolicy(BCPolicy):
+class BCCnnPolicy(ImagePolicyDefaults, BCPolicy):
     """:class:`BCPolicy` for image observations."""
 
-    def __init__(self, observation_space: spaces.Space, action_space: spaces.Box, lr_schedule: Schedule,
-                 activation_fn: type[nn.Module] = nn.LeakyReLU,
-                 features_extractor_class: type[BaseFeaturesExtractor] = ImageEncoder, **kwargs: Any):
-        super().__init__(observation_space, action_space, lr_schedule, activation_fn=activation_fn,
-                         features_extractor_class=features_extractor_class, **kwargs)
 
-
-class BCMultiInputPolicy(BCPolicy):
+class BCMultiInputPolicy(DictPolicyDefaults, BCPolicy):
     """:class:`BCPolicy` for Dict observations (every key, or ``actor_keys``)."""
-
-    def __init__(self, observation_space: spaces.Space, action_space: spaces.Box, lr_schedule: Schedule,
-                 activation_fn: type[nn.Module] = nn.LeakyReLU,
-                 features_extractor_class: type[BaseFeaturesExtractor] = KeySubsetExtractor, **kwargs: Any):
-        super().__init__(observation_space, action_space, lr_schedule, activation_fn=activation_fn,
-                         features_extractor_class=features_extractor_class, **kwargs)
 
 
 class BC(BaseAlgorithm):

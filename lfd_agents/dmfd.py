@@ -50,7 +50,8 @@ from torch import nn
 
 from lfd_agents.augment import augment_observations, image_keys
 from lfd_agents.demos import episodes_with_states, fill_replay_buffer, load_episodes
-from lfd_agents.networks import GaussianActor, ImageEncoder, KeySubsetExtractor, log_prob
+from lfd_agents.networks import (DictPolicyDefaults, GaussianActor, ImagePolicyDefaults, KeySubsetExtractor,
+                                 log_prob)
 from lfd_agents.rsi import ReferenceStateInit
 
 DEFAULT_NET_ARCH = (1024, 1024)
@@ -190,24 +191,12 @@ class DMfDPolicy(BasePolicy):
         self.training = mode
 
 
-class DMfDCnnPolicy(DMfDPolicy):
+class DMfDCnnPolicy(ImagePolicyDefaults, DMfDPolicy):
     """:class:`DMfDPolicy` for image observations (DMfD CNN encoder, LeakyReLU MLPs)."""
 
-    def __init__(self, observation_space: spaces.Space, action_space: spaces.Box, lr_schedule: Schedule,
-                 activation_fn: type[nn.Module] = nn.LeakyReLU,
-                 features_extractor_class: type[BaseFeaturesExtractor] = ImageEncoder, **kwargs: Any):
-        super().__init__(observation_space, action_space, lr_schedule, activation_fn=activation_fn,
-                         features_extractor_class=features_extractor_class, **kwargs)
 
-
-class DMfDMultiInputPolicy(DMfDPolicy):
+class DMfDMultiInputPolicy(DictPolicyDefaults, DMfDPolicy):
     """:class:`DMfDPolicy` for Dict observations (e.g. ``"state+image"``; asymmetric by default)."""
-
-    def __init__(self, observation_space: spaces.Space, action_space: spaces.Box, lr_schedule: Schedule,
-                 activation_fn: type[nn.Module] = nn.LeakyReLU,
-                 features_extractor_class: type[BaseFeaturesExtractor] = KeySubsetExtractor, **kwargs: Any):
-        super().__init__(observation_space, action_space, lr_schedule, activation_fn=activation_fn,
-                         features_extractor_class=features_extractor_class, **kwargs)
 
 
 # ----------------------------------------------------------------------------------- algorithm

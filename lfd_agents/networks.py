@@ -10,6 +10,8 @@
 * :class:`GaussianActor` — the DMfD actor: ``μ = tanh(MLP(features))`` and a state-independent
   log-std ``lo + (hi - lo)·sigmoid(θ)``. The Gaussian is *not* squashed, so the log-likelihood
   of any stored action in [-1, 1] is finite; sampled actions are clipped to [-1, 1].
+* :class:`ImagePolicyDefaults` / :class:`DictPolicyDefaults` — mixins giving a policy class the
+  image / Dict encoder and LeakyReLU MLPs as defaults (the ``CnnPolicy``/``MultiInputPolicy``s).
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from gymnasium import spaces
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.preprocessing import is_image_space
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, create_mlp
+from stable_baselines3.common.type_aliases import Schedule
 from torch import nn
 from torch.distributions import Normal
 
@@ -163,3 +166,25 @@ class GaussianActor(BasePolicy):
 def log_prob(dist: Normal, actions: th.Tensor) -> th.Tensor:
     """Log-likelihood of ``actions`` (batch, act_dim) under a factorised Normal, shape (batch,)."""
     return dist.log_prob(actions).sum(dim=-1)
+
+
+class ImagePolicyDefaults:
+    """Mixin for a policy class (listed first): image encoder (:class:`ImageEncoder`) and
+    LeakyReLU MLPs by default, e.g. ``class BCCnnPolicy(ImagePolicyDefaults, BCPolicy)``."""
+
+    def __init__(self, observation_space: spaces.Space, action_space: spaces.Box, lr_schedule: Schedule,
+                 activation_fn: type[nn.Module] = nn.LeakyReLU,
+                 features_extractor_class: type[BaseFeaturesExtractor] = ImageEncoder, **kwargs: Any):
+        super().__init__(observation_space, action_space, lr_schedule, activation_fn=activation_fn,
+                         features_extractor_class=features_extractor_class, **kwargs)
+
+
+class DictPolicyDefaults:
+    """Mixin for a policy class (listed first): Dict-observation encoder
+    (:class:`KeySubsetExtractor`) and LeakyReLU MLPs by default."""
+
+    def __init__(self, observation_space: spaces.Space, action_space: spaces.Box, lr_schedule: Schedule,
+                 activation_fn: type[nn.Module] = nn.LeakyReLU,
+                 features_extractor_class: type[BaseFeaturesExtractor] = KeySubsetExtractor, **kwargs: Any):
+        super().__init__(observation_space, action_space, lr_schedule, activation_fn=activation_fn,
+                         features_extractor_class=features_extractor_class, **kwargs)

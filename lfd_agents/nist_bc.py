@@ -53,6 +53,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from lfd_agents.augment import random_shift
+from lfd_envs.core.rollout import episode_steps, play_episode
 
 DEFAULT_CAMERAS = ("workspace", "wrist")
 
@@ -228,13 +229,11 @@ def collect_demonstrations(env_kwargs: dict[str, Any], episodes: int, seed: int 
         obs, _ = env.reset(seed=seed + attempt)
         attempt += 1
         expert.reset()
-        observations, actions, done, info = [obs], [], False, {}
-        while not done:
-            action, _ = expert.predict(obs)
-            obs, _, terminated, truncated, info = env.step(action)
-            observations.append(obs)
-            actions.append(np.asarray(action))
-            done = terminated or truncated
+        observations, actions, info = [obs], [], {}
+        for step in episode_steps(env, expert, obs):
+            observations.append(step.obs)
+            actions.append(np.asarray(step.action))
+            info = step.info
         if info.get("is_success", False):
             cams = {c: np.stack([o[c] for o in observations]) for c in env.cameras}
             out.append({"observations": {**cams, "instruction": observations[0]["instruction"]},
@@ -528,14 +527,7 @@ def evaluate(agent: Any, env: gym.Env, episodes: int, seed: int = 0, split: str 
     axis of ``agent`` on variants ``0 .. episodes-1`` of ``split``."""
     successes, finals, lateral = [], [], []
     for k in range(int(episodes)):
-        obs, info = env.reset(seed=seed + k, options={"split": split, "variant": k})
-        if hasattr(agent, "reset"):
-            agent.reset()
-        done = False
-        while not done:
-            action, _ = agent.predict(obs, deterministic=True)
-            obs, _, terminated, truncated, info = env.step(action)
-            done = terminated or truncated
+        info = play_episode(env, agent, seed=seed + k, options={"split": split, "variant": k})
         successes.append(bool(info.get("is_success", False)))
         finals.append(float(info["normalized_performance"]))
         e = env.unwrapped

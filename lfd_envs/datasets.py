@@ -38,6 +38,7 @@ import gymnasium as gym
 import numpy as np
 
 import lfd_envs  # noqa: F401  (registers ids)
+from lfd_envs.core.rollout import episode_steps
 
 STATE_KEY = "state"
 _SEP = "."  # HDF5 uses "/" for groups; state keys are flattened with this separator
@@ -157,16 +158,12 @@ def run_episode(env: gym.Env, policy: Any, seed: int, options: dict[str, Any], e
     if hasattr(policy, "reset"):
         policy.reset()
     rec.add(obs, info, env)
-    done = False
-    while not done:
-        action, _ = policy.predict(obs, deterministic=True)
-        obs, reward, terminated, truncated, info = env.step(action)
-        rec.actions.append(np.asarray(action, dtype=np.asarray(env.action_space.sample()).dtype))
-        rec.rewards.append(float(reward))
-        rec.terminations.append(bool(terminated))
-        rec.truncations.append(bool(truncated))
-        rec.add(obs, info, env)
-        done = terminated or truncated
+    for step in episode_steps(env, policy, obs):
+        rec.actions.append(np.asarray(step.action, dtype=np.asarray(env.action_space.sample()).dtype))
+        rec.rewards.append(float(step.reward))
+        rec.terminations.append(bool(step.terminated))
+        rec.truncations.append(bool(step.truncated))
+        rec.add(step.obs, step.info, env)
     return rec
 
 

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import lfd_envs  # noqa: F401
+from lfd_envs.core.rollout import play_episode
 from lfd_envs.experts import make_expert
 from lfd_envs.tasks.dry_cloth import CLOTH_SIZE, PLANK_HALF_EXTENTS, PLANK_X, DryClothTask, dry_cloth_scores
 
@@ -14,13 +15,7 @@ RES = 20
 
 
 def _run(env, policy, variant: int) -> float:
-    obs, info = env.reset(seed=0, options={"variant": variant, "split": "eval"})
-    policy.reset()
-    done = False
-    while not done:
-        action, _ = policy.predict(obs)
-        obs, _, terminated, truncated, info = env.step(action)
-        done = terminated or truncated
+    info = play_episode(env, policy, seed=0, options={"variant": variant, "split": "eval"})
     return float(info["normalized_performance"])
 
 

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import lfd_envs  # noqa: F401
+from lfd_envs.core.rollout import play_episode
 from lfd_envs.experts import make_expert
 from lfd_envs.mujoco import nist_board as board
 from lfd_envs.mujoco.nist import HELDOUT_TASKS, TRAIN_TASKS, NistBoardInsertEnv, all_tasks
@@ -143,13 +144,7 @@ def test_expert_succeeds_with_recovery(fit, mode):
         env = NistBoardInsertEnv(instruction=task, fit=fit, obs_mode="state", action_mode=mode)
         expert = make_expert(env, recovery_prob=0.5)
         for seed in range(4):
-            obs, _ = env.reset(seed=seed)
-            expert.reset()
-            done = False
-            while not done:
-                action, _ = expert.predict(obs, deterministic=True)
-                obs, _, terminated, truncated, info = env.step(action)
-                done = terminated or truncated
+            info = play_episode(env, expert, seed=seed)
             successes.append(info["is_success"])
             recovered += expert.recovered
     assert np.mean(successes) >= 0.95

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import lfd_envs  # noqa: F401
+from lfd_envs.core.rollout import play_episode
 from lfd_envs.experts import make_expert
 
 CASES = [  # env id, kwargs, required margin over random
@@ -21,14 +22,7 @@ CASES = [  # env id, kwargs, required margin over random
 
 
 def _episode(env, policy, variant):
-    obs, info = env.reset(seed=0, options={"variant": variant, "split": "eval"})
-    policy.reset()
-    done = False
-    while not done:
-        action, _ = policy.predict(obs, deterministic=True)
-        obs, _, term, trunc, info = env.step(action)
-        done = term or trunc
-    return info["normalized_performance"]
+    return play_episode(env, policy, seed=0, options={"variant": variant, "split": "eval"})["normalized_performance"]
 
 
 class _Random:

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import lfd_envs  # noqa: F401
+from lfd_envs.core.rollout import episode_steps
 from lfd_envs.experts import make_expert
 from lfd_envs.tasks.three_boxes import BOX_HALF_EXTENTS, matrix_to_quaternion
 
@@ -29,15 +30,12 @@ def _overlap_violations(env) -> int:
 
 
 def _run(env, policy, variant: int, check=None) -> float:
-    obs, info = env.reset(seed=0, options={"variant": variant, "split": "eval"})
+    obs, _ = env.reset(seed=0, options={"variant": variant, "split": "eval"})
     policy.reset()
-    done = False
-    while not done:
-        obs, _, terminated, truncated, info = env.step(policy.predict(obs)[0])
-        done = terminated or truncated
+    for step in episode_steps(env, policy, obs):
         if check is not None:
             check(env)
-    return float(info["normalized_performance"])
+    return float(step.info["normalized_performance"])
 
 
 def _no_overlap(env) -> None:

@@ -21,7 +21,7 @@ Limitations: Box observations only (no Dict/HER), data reuse needs ``n_envs == 1
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
@@ -200,7 +200,32 @@ def _sync_gamma(model) -> None:
         warnings.warn("no MoPAWrapper found in the env; transitions count as one step each", stacklevel=3)
 
 
-class MoPASAC(SAC):
+class _MoPAAlgorithm:
+    """What :class:`MoPASAC` and :class:`MoPATD3` add to their SB3 algorithm (listed second):
+    the MoPA replay buffer and k-step discount (:func:`_mopa_kwargs`, :func:`_sync_gamma`) and
+    the benchmark-harness adapter."""
+
+    #: ``algo`` of :class:`~lfd_agents.mopa.agent.MoPAAgent` built by :meth:`for_benchmark`
+    algo: ClassVar[str]
+
+    def __init__(self, policy, env, *, reward_scale: float = 1.0, reuse: int = 15, seed: int | None = None,
+                 **kwargs: Any) -> None:
+        super().__init__(policy, env, **_mopa_kwargs(kwargs, reward_scale, reuse, seed))
+        _sync_gamma(self)
+
+    def set_env(self, env, force_reset: bool = True) -> None:
+        super().set_env(env, force_reset)
+        _sync_gamma(self)
+
+    @classmethod
+    def for_benchmark(cls, env: gym.Env, seed: int = 0, **kwargs: Any):
+        """Harness adapter: :class:`~lfd_agents.mopa.agent.MoPAAgent` (budget in low-level steps)."""
+        from lfd_agents.mopa.agent import MoPAAgent
+
+        return MoPAAgent(env, seed=seed, algo=cls.algo, **kwargs)
+
+
+class MoPASAC(_MoPAAlgorithm, SAC):
     """SAC on a :class:`MoPAWrapper` env with k-step targets and data reuse.
 
     Args (besides SB3 ``SAC``'s):
@@ -208,38 +233,10 @@ class MoPASAC(SAC):
         reuse: M, sub-segments of each planned path stored as extra transitions (0: ablation).
     """
 
-    def __init__(self, policy, env, *, reward_scale: float = 1.0, reuse: int = 15, seed: int | None = None,
-                 **kwargs: Any) -> None:
-        super().__init__(policy, env, **_mopa_kwargs(kwargs, reward_scale, reuse, seed))
-        _sync_gamma(self)
-
-    def set_env(self, env, force_reset: bool = True) -> None:
-        super().set_env(env, force_reset)
-        _sync_gamma(self)
-
-    @classmethod
-    def for_benchmark(cls, env: gym.Env, seed: int = 0, **kwargs: Any):
-        """Harness adapter: :class:`~lfd_agents.mopa.agent.MoPAAgent` (budget in low-level steps)."""
-        from lfd_agents.mopa.agent import MoPAAgent
-
-        return MoPAAgent(env, seed=seed, algo="sac", **kwargs)
+    algo = "sac"
 
 
-class MoPATD3(TD3):
+class MoPATD3(_MoPAAlgorithm, TD3):
     """TD3 counterpart of :class:`MoPASAC` (ablation "TD3 instead of SAC")."""
 
-    def __init__(self, policy, env, *, reward_scale: float = 1.0, reuse: int = 15, seed: int | None = None,
-                 **kwargs: Any) -> None:
-        super().__init__(policy, env, **_mopa_kwargs(kwargs, reward_scale, reuse, seed))
-        _sync_gamma(self)
-
-    def set_env(self, env, force_reset: bool = True) -> None:
-        super().set_env(env, force_reset)
-        _sync_gamma(self)
-
-    @classmethod
-    def for_benchmark(cls, env: gym.Env, seed: int = 0, **kwargs: Any):
-        """Harness adapter: :class:`~lfd_agents.mopa.agent.MoPAAgent` (budget in low-level steps)."""
-        from lfd_agents.mopa.agent import MoPAAgent
-
-        return MoPAAgent(env, seed=seed, algo="td3", **kwargs)
+    algo = "td3"

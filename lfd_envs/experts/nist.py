@@ -26,6 +26,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from lfd_envs.core.rollout import play_episode
 from lfd_envs.mujoco.nist import ACTION_BIN
 
 APPROACH_HEIGHT = 0.006
@@ -158,13 +159,7 @@ def success_rates(fit: str = "loose", action_mode: str = "continuous", episodes:
         expert = NistInsertExpert(env, recovery_prob=recovery_prob)
         wins, recovered, lengths = 0, 0, []
         for seed in range(int(episodes)):
-            obs, _ = env.reset(seed=seed)
-            expert.reset()
-            done, info = False, {}
-            while not done:
-                action, _ = expert.predict(obs)
-                obs, _, terminated, truncated, info = env.step(action)
-                done = terminated or truncated
+            info = play_episode(env, expert, seed=seed)
             wins += bool(info["is_success"])
             recovered += expert.recovered
             lengths.append(env.elapsed_steps)
