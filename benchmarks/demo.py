@@ -1,7 +1,8 @@
 """What ``make demo`` runs: pictures of every particle scene, then the smoke benchmark suite.
 
 1. Renders each particle task (256×256, the project's own Warp ray-caster) after a reset
-   and after its scripted expert has acted, into ``docs/images/``.
+   and after its scripted expert has acted, side by side, into ``docs/images/<EnvId>.png``
+   (the pictures in the README).
 2. Runs ``python -m benchmarks.run --suite smoke`` (real training at small budgets on a
    2-core CPU) which rewrites ``leaderboard.md``.
 """
@@ -17,8 +18,9 @@ IMAGES = ROOT / "docs" / "images"
 
 
 def render_scenes(out_dir: Path = IMAGES) -> list[Path]:
-    """Save a start and an end frame of every particle task; returns the written files."""
+    """Save ``<EnvId>.png`` (start frame | frame after the expert) of every particle task."""
     import gymnasium as gym
+    import numpy as np
 
     import lfd_envs
     from lfd_envs.core.rollout import finish_episode
@@ -38,11 +40,9 @@ def render_scenes(out_dir: Path = IMAGES) -> list[Path]:
         expert = make_expert(env)
         expert.reset()
         info = finish_episode(env, expert, obs)
-        name = env_id.split("-v")[0]
-        for tag, frame in (("start", start), ("expert", env.render())):
-            path = out_dir / f"{name}_{tag}.png"
-            save_png(path, frame)
-            written.append(path)
+        path = out_dir / f"{env_id}.png"
+        save_png(path, np.stack([start, env.render()]))  # start | after the expert, side by side
+        written.append(path)
         print(f"[demo] {env_id}: expert p̂ = {info.get('normalized_performance', float('nan')):.3f}")
         env.close()
     return written
