@@ -109,10 +109,17 @@ class OMPLPlanner:
         algorithm: ``"rrt_connect"`` (default) or ``"rrt_star"``.
         time_limit: seconds per OMPL query (default 1.0).
         range: planner extension length in joint space, L2 (0.1 for Sawyer, 0.2 for 2D).
-        check_resolution: largest joint-space (L2) distance between validity checks along an
-            edge or straight line; defaults to ``dq_step / 2``.
-        simplify: shortcut/smooth the OMPL solution before densifying (default True).
-        simplify_time: seconds allowed for simplification.
+        check_resolution: largest per-joint distance between validity checks of the returned
+            path and of straight lines; defaults to ``dq_step / 2``.
+        motion_resolution: joint-space (L2) spacing of OMPL's edge checks while searching;
+            defaults to ``check_resolution``. A coarser value makes the search cheaper; the
+            returned path is always re-checked at ``check_resolution`` (and re-planned, up to
+            ``max_attempts`` times, if that fails).
+        simplify: how to shorten the OMPL solution before densifying: ``True``/``"shortcut"``
+            (default: OMPL's vertex shortcutting ``reduceVertices``, then merging of close
+            vertices -- a few ms), ``"max"`` (OMPL's full ``simplifySolution`` with B-spline
+            smoothing, up to ``simplify_time``; often 10x the search time) or ``False``.
+        simplify_time: seconds allowed for ``simplify="max"``.
         interpolate_first: try the straight line before planning (default True).
         max_attempts: OMPL queries per plan when a solution fails the final segment check
             (all within ``time_limit``).
@@ -130,7 +137,8 @@ class OMPLPlanner:
         time_limit: float = 1.0,
         range: float = 0.1,  # noqa: A002 - OMPL's name for the extension length
         check_resolution: float | None = None,
-        simplify: bool = True,
+        motion_resolution: float | None = None,
+        simplify: bool | str = True,
         simplify_time: float = 0.1,
         interpolate_first: bool = True,
         max_attempts: int = 3,
@@ -159,7 +167,11 @@ class OMPLPlanner:
         self.time_limit = float(time_limit)
         self.range = float(range)
         self.check_resolution = float(check_resolution) if check_resolution else self.dq_step / 2
-        self.simplify = bool(simplify)
+        self.motion_resolution = float(motion_resolution) if motion_resolution else self.check_resolution
+        modes = {True: "shortcut", False: "none", "shortcut": "shortcut", "max": "max", "none": "none"}
+        if not isinstance(simplify, (bool, str)) or simplify not in modes:
+            raise ValueError(f"simplify must be a bool or one of 'shortcut', 'max', 'none', got {simplify!r}")
+        self.simplify = modes[simplify]
         self.simplify_time = float(simplify_time)
         self.interpolate_first = bool(interpolate_first)
         self.max_attempts = max(1, int(max_attempts))
@@ -169,7 +181,7 @@ class OMPLPlanner:
 
             ou.RNG.setSeed(int(seed))
         self._offset = np.zeros(self.dim)
-        self._ss = None
+        self._ss = self._simplifier = None
         self.stats = {"calls": 0, "interpolation": 0, "planner": 0, "failed": 0, "invalid": 0, "time": 0.0}
         _LIVE_PLANNERS.add(self)
 
@@ -207,15 +219,16 @@ class OMPLPlanner:
         space.setBounds(bounds)
         ss = og.SimpleSetup(space)
         # The callback must not reference ``self`` (a cycle through C++ that gc cannot see).
-        ss.setStateValidityChecker(_make_checker(self.is_valid, self.dim, weakref.ref(self)))
+        ss.setStateValidityChecker(_make_checker(_unchecked(self.is_valid), self.dim, weakref.ref(self)))
         si = ss.getSpaceInformation()
         extent = float(space.getMaximumExtent())
-        si.setStateValidityCheckingResolution(min(1.0, self.check_resolution / extent))
+        si.setStateValidityCheckingResolution(min(1.0, self.motion_resolution / extent))
         planner = getattr(og, PLANNER_ALGORITHMS[self.algorithm])(si)
         planner.setRange(self.range)
         ss.setPlanner(planner)
         ss.setup()
         self._ss, self._space, self._bounds_obj = ss, space, bounds
+        self._simplifier = og.PathSimplifier(si)
         return ss
 
     def _bounds(self) -> np.ndarray:
@@ -226,7 +239,7 @@ class OMPLPlanner:
 
     def close(self) -> None:
         """Release the OMPL objects (also done automatically at interpreter exit)."""
-        self._ss = self._space = self._bounds_obj = None
+        self._ss = self._space = self._bounds_obj = self._simplifier = None
 
     def __del__(self) -> None:  # pragma: no cover - best effort
         try:
@@ -335,9 +348,13 @@ class OMPLPlanner:
         ss.solve(time_limit)
         if not ss.haveExactSolutionPath():
             return None
-        if self.simplify:  # within the query's time budget (at least 10 ms)
+        if self.simplify == "max":  # within the query's time budget (at least 10 ms)
             ss.simplifySolution(min(self.simplify_time, max(0.01, deadline - time.perf_counter())))
         path = ss.getSolutionPath()
+        if self.simplify == "shortcut":
+            simplifier = self._simplifier
+            simplifier.reduceVertices(path)
+            simplifier.collapseCloseVertices(path)
         d = self.dim
         states = np.array([path.getState(i)[0:d] for i in range(path.getStateCount())], dtype=np.float64)
         del path, s, g
@@ -353,6 +370,17 @@ class OMPLPlanner:
     def offset(self) -> np.ndarray:
         """Offset added to OMPL states to get joint coordinates (non-zero on unlimited joints)."""
         return self._offset
+
+
+def _unchecked(is_valid: Callable[[np.ndarray], bool]) -> Callable[[np.ndarray], bool]:
+    """The owner's input-check-free ``_is_valid_unchecked`` when ``is_valid`` is a bound
+    ``is_valid`` method offering one (the planner only passes finite float64 ``(d,)`` arrays),
+    else ``is_valid`` itself."""
+    owner = getattr(is_valid, "__self__", None)
+    fast = getattr(owner, "_is_valid_unchecked", None)
+    if getattr(is_valid, "__name__", None) == "is_valid" and callable(fast):
+        return fast
+    return is_valid
 
 
 def _make_checker(is_valid: Callable[[np.ndarray], bool], dim: int, planner_ref: weakref.ref):

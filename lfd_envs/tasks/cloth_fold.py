@@ -23,7 +23,7 @@ import numpy as np
 from lfd_envs.tasks.cloth_task import ClothTask
 from lfd_envs.tasks.particle_env import ParticleEnv, ParticleVectorEnv
 from lfd_envs.tasks.particle_task import Context, TaskVariant
-from lfd_envs.tasks.picker_actions import PickPlaceSchedule, Workspace
+from lfd_envs.tasks.picker_actions import FAST_FREE_MOVES, PickPlaceSchedule, Workspace
 
 __all__ = ["ClothFoldTask", "ClothFoldEnv", "ClothFoldVectorEnv", "fold_distances"]
 
@@ -60,7 +60,8 @@ class ClothFoldTask(ClothTask):
         return Workspace((-0.6, -0.6, 0.0), (0.6, 0.6, 0.7), margin=self.picker_radius)
 
     def pick_place_schedule(self) -> PickPlaceSchedule:
-        return PickPlaceSchedule(lift=0.02, arc_ratio=0.45, arc_max=0.5, carry_frames=48, hold_frames=8)
+        return PickPlaceSchedule(lift=0.02, arc_ratio=0.45, arc_max=0.5, carry_frames=48, hold_frames=8,
+                                 **FAST_FREE_MOVES)  # 71 frames
 
     def camera(self):
         from lfd_envs.render import Camera

@@ -24,7 +24,7 @@ import numpy as np
 from gymnasium import spaces
 
 __all__ = ["Workspace", "ActionMode", "DeltaActions", "PickPlaceActions", "PickPlaceSchedule",
-           "ACTION_MODES", "make_action_mode", "carry_point", "arc_length"]
+           "ACTION_MODES", "make_action_mode", "carry_point", "arc_length", "FAST_FREE_MOVES"]
 
 
 @dataclass(frozen=True)
@@ -187,6 +187,14 @@ class PickPlaceSchedule:
 
         return {"above_pick": raised(pick, self.hover), "lifted": raised(pick, self.lift),
                 "above_place": raised(place, self.lift), "retreat": raised(place, self.hover)}
+
+
+#: :class:`PickPlaceSchedule` overrides that move *empty* pickers (approach, descend, retreat) in
+#: one frame each, and lift/lower the held point (by ``lift`` <= 0.03 m) in the frames it needs.
+#: Pickers do not collide with particles, so a fast empty picker changes nothing physically; the
+#: frames saved are engine work where nothing happens (cloth-fold tasks: ~40 % fewer frames).
+FAST_FREE_MOVES: dict[str, float | int] = {"free_speed": 2.0, "approach_frames": 1, "descend_frames": 1,
+                                           "retreat_frames": 1, "lift_frames": 2, "lower_frames": 2}
 
 
 def carry_point(start: np.ndarray, end: np.ndarray, height: np.ndarray, alpha: np.ndarray, top: float) -> np.ndarray:
