@@ -77,7 +77,7 @@ def plot_curves(env_label: str, agents: dict[str, list[dict[str, Any]]], path: P
         if not any(r.get("learning_curve") for r in runs):  # reference rows as horizontal lines
             mean = np.mean([np.mean(r["final_normalized_performance"]) for r in runs])
             ax.axhline(mean, linestyle="--", linewidth=1, color="gray" if agent == "random" else "black")
-            ax.annotate(agent, (0, mean), fontsize=7, va="bottom")
+            ax.annotate(agent, (0.01, mean), xycoords=("axes fraction", "data"), fontsize=7, va="bottom")
     if plotted:
         ax.set_xlabel("env steps")
         ax.set_ylabel("normalized performance p̂")
