@@ -3,8 +3,8 @@
 1. Renders each particle task (256×256, the project's own Warp ray-caster) after a reset
    and after its scripted expert has acted, side by side, into ``docs/images/<EnvId>.png``
    (the pictures in the README).
-2. Runs ``python -m benchmarks.run --suite smoke`` (real training at small budgets on a
-   2-core CPU) which rewrites ``leaderboard.md``.
+2. Runs ``python -m benchmarks.run --suite smoke --force`` (real training at small budgets on
+   a 2-core CPU, re-running the committed cells) which rewrites ``leaderboard.md``.
 """
 
 from __future__ import annotations
@@ -54,7 +54,8 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     files = render_scenes()
     print(f"[demo] wrote {len(files)} images to {IMAGES.relative_to(ROOT)} in {time.perf_counter() - t0:.0f} s")
-    code = run.main(["--suite", "smoke", *(argv or [])])
+    # --force: the committed leaderboard's cells exist already; the demo re-trains them for real
+    code = run.main(["--suite", "smoke", "--force", *(argv or [])])
     print(f"[demo] done in {(time.perf_counter() - t0) / 60:.1f} min")
     return code
 
