@@ -21,6 +21,7 @@ def evaluate(env_id: str, episodes: int) -> dict[str, Any]:
     import gymnasium as gym
 
     import lfd_envs  # noqa: F401  (registers the ids)
+    from lfd_envs.core.rollout import episode_steps
     from lfd_envs.experts import make_expert
 
     env = gym.make(env_id)
@@ -28,18 +29,12 @@ def evaluate(env_id: str, episodes: int) -> dict[str, Any]:
     success, lengths, returns = [], [], []
     t0 = time.perf_counter()
     for k in range(episodes):
-        obs, info = env.reset(seed=k, options={"split": "eval", "variant": k})
+        obs, _ = env.reset(seed=k, options={"split": "eval", "variant": k})
         expert.reset()
-        total, steps = 0.0, 0
-        while True:
-            action, _ = expert.predict(obs, deterministic=True)
-            obs, reward, terminated, truncated, info = env.step(action)
-            total, steps = total + reward, steps + 1
-            if terminated or truncated:
-                break
-        success.append(bool(info["is_success"]))
-        lengths.append(steps)
-        returns.append(total)
+        steps = list(episode_steps(env, expert, obs))
+        success.append(bool(steps[-1].info["is_success"]))
+        lengths.append(len(steps))
+        returns.append(sum(step.reward for step in steps))
     env.close()
     return {"env": env_id, "episodes": episodes, "success_rate": round(float(np.mean(success)), 3),
             "mean_length": round(float(np.mean(lengths)), 1), "mean_return": round(float(np.mean(returns)), 1),

@@ -12,7 +12,7 @@ import os
 import platform
 import statistics
 import time
-from typing import Any, Callable
+from typing import Any, Callable, Iterable
 
 
 # ---------------------------------------------------------------------------- helpers
@@ -34,6 +34,22 @@ def _median_seconds(fn: Callable[[], Any], repeats: int, budget_s: float = 1.5) 
         wall.append(time.perf_counter() - t0)
         cpu.append(time.thread_time() - c0)
     return statistics.median(wall), statistics.median(cpu)
+
+
+def _step_resetting(env: Any, actions: Iterable[Any]) -> None:
+    """Step ``env`` with each of ``actions``, resetting it whenever an episode ends."""
+    for action in actions:
+        *_, term, trunc, _ = env.step(action)
+        if term or trunc:
+            env.reset()
+
+
+def _median_seconds_without_reset(run: Callable[[], Any], reset: Callable[[], Any], repeats: int,
+                                  budget_s: float, reset_budget_s: float) -> tuple[float, float]:
+    """:func:`_median_seconds` of ``run`` (which starts with ``reset()``) minus that of ``reset``."""
+    sec, cpu = _median_seconds(run, repeats, budget_s=budget_s)
+    rsec, rcpu = _median_seconds(reset, repeats, budget_s=reset_budget_s)
+    return max(sec - rsec, 1e-9), max(cpu - rcpu, 1e-9)
 
 
 def _cpu_model() -> str:
@@ -209,17 +225,15 @@ def mopa_training_rows(device: str = "cpu", env_id: str = "Push2DObstacle-v0", s
     third of them, batch 256, one torch thread. ``device`` is unused (CPU only).
     """
     import gymnasium as gym
-    import torch
 
     import lfd_envs  # noqa: F401
     from stable_baselines3 import SAC
 
     from lfd_agents.mopa import MoPASAC
+    from lfd_agents.threads import torch_threads
 
     rows = []
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
+    with torch_threads(1):
         for name in ("mopa_sac", "sac"):
             env = gym.make(env_id)
             common = dict(learning_starts=steps // 3, batch_size=256, device="cpu", verbose=0)
@@ -234,8 +248,6 @@ def mopa_training_rows(device: str = "cpu", env_id: str = "Push2DObstacle-v0", s
             wall = time.perf_counter() - t0
             rows.append({"section": "mopa-training", "env": env_id, "agent": name, "env_steps": done,
                          "wall_s": round(wall, 2), "env_steps_per_s": round(done / wall, 1)})
-    finally:
-        torch.set_num_threads(threads)
     return rows
 
 
@@ -272,10 +284,7 @@ def _mujoco_steps_per_s(env_id: str, obs_mode: str, steps: int, repeats: int, se
     env.reset(seed=seed)
 
     def run() -> None:
-        for _ in range(steps):
-            _, _, term, trunc, _ = env.step(rng.uniform(-1, 1, env.action_space.shape))
-            if term or trunc:
-                env.reset()
+        _step_resetting(env, (rng.uniform(-1, 1, env.action_space.shape) for _ in range(steps)))
 
     sec, cpu = _median_seconds(run, repeats, budget_s=3.0)
     env.close()
@@ -454,10 +463,7 @@ def sawyer_env_rows(device: str = "cpu", steps: int = 150, image_steps: int = 40
             actions = np.random.default_rng(0).uniform(-1, 1, (n, *env.action_space.shape)).astype(np.float32)
 
             def run(env=env, actions=actions) -> None:
-                for a in actions:
-                    *_, term, trunc, _ = env.step(a)
-                    if term or trunc:
-                        env.reset()
+                _step_resetting(env, actions)
 
             sec, cpu = _median_seconds(run, repeats, budget_s=3.0)
             row = {"section": "sawyer", "env": env_id, "obs": f"{obs_mode}" + (" 84x84" if obs_mode == "image" else ""),
@@ -524,9 +530,7 @@ def drycloth_threeboxes_rows(device: str = "cpu", repeats: int = 3,
         def reset_only(env=env) -> None:
             env.reset(seed=0, options={"variant": 0})
 
-        sec, cpu = _median_seconds(run, repeats, budget_s=4.0)
-        rsec, rcpu = _median_seconds(reset_only, repeats, budget_s=0.5)
-        sec, cpu = max(sec - rsec, 1e-9), max(cpu - rcpu, 1e-9)
+        sec, cpu = _median_seconds_without_reset(run, reset_only, repeats, budget_s=4.0, reset_budget_s=0.5)
         base = env.unwrapped
         rows.append({"section": "drycloth_threeboxes", "env": env_id, "action_mode": mode, "pickers": pickers,
                      "obs": obs_mode, "resolution": base.task.resolution, "particles": base.batch.sim.num_particles,
@@ -571,9 +575,7 @@ def particle_env_rows(device: str = "cpu", repeats: int = 3,
                 def reset_only(env=env) -> None:
                     env.reset(seed=0, options={"variant": 0})
 
-                sec, cpu = _median_seconds(run, repeats, budget_s=3.0)
-                rsec, rcpu = _median_seconds(reset_only, repeats, budget_s=0.3)
-                sec, cpu = max(sec - rsec, 1e-9), max(cpu - rcpu, 1e-9)
+                sec, cpu = _median_seconds_without_reset(run, reset_only, repeats, budget_s=3.0, reset_budget_s=0.3)
                 base = env.unwrapped
                 rows.append({"section": "particle_envs", "env": env_id, "action_mode": mode, "obs": obs_mode,
                              "pickers": base.num_pickers, "resolution": base.task.resolution,
@@ -584,7 +586,6 @@ def particle_env_rows(device: str = "cpu", repeats: int = 3,
     return rows
 
 
-# ---------------------------------------------------------------------------- main
 # ---------------------------------------------------------------------------- NIST board
 def _nist_steps_per_s(steps: int, seed: int, press: bool = False, **env_kwargs: Any) -> tuple[float, float]:
     """Median (wall, CPU) NistBoardInsert-v0 env steps/s: random actions, or pressing on the board."""
@@ -598,11 +599,7 @@ def _nist_steps_per_s(steps: int, seed: int, press: bool = False, **env_kwargs: 
     down = np.array([0.0, 0.0, -1.0], np.float32)
 
     def run() -> None:
-        for _ in range(steps):
-            action = down if press else rng.uniform(-1, 1, 3).astype(np.float32)
-            _, _, term, trunc, _ = env.step(action)
-            if term or trunc:
-                env.reset()
+        _step_resetting(env, (down if press else rng.uniform(-1, 1, 3).astype(np.float32) for _ in range(steps)))
 
     if press:  # start on the board, beside the hole, so every physics step has contacts
         env.reset(seed=seed, options={"instruction": "insert medium peg in large hole"})
@@ -649,6 +646,7 @@ def nist_rows(device: str = "cpu", steps: int = 100, seed: int = 0) -> list[dict
     return rows
 
 
+# ---------------------------------------------------------------------------- main
 SECTIONS: dict[str, Callable[..., list[dict[str, Any]]]] = {
     "particle_envs": particle_env_rows,
     "particle_engine": particle_engine_rows,

@@ -40,7 +40,6 @@ cameras), ``nist_bc_h6`` (history 6) and ``nist_bc_1cam`` (workspace camera only
 
 from __future__ import annotations
 
-import contextlib
 import zlib
 from collections import deque
 from pathlib import Path
@@ -53,23 +52,10 @@ import torch.nn.functional as F
 from torch import nn
 
 from lfd_agents.augment import random_shift
+from lfd_agents.threads import torch_threads
 from lfd_envs.core.rollout import episode_steps, play_episode
 
 DEFAULT_CAMERAS = ("workspace", "wrist")
-
-
-@contextlib.contextmanager
-def _torch_threads(n: int | None):
-    """Run the block with ``n`` intra-op torch threads (restored afterwards); None = unchanged."""
-    if n is None:
-        yield
-        return
-    previous = th.get_num_threads()
-    th.set_num_threads(int(n))
-    try:
-        yield
-    finally:
-        th.set_num_threads(previous)
 
 
 # ---------------------------------------------------------------------- instruction features
@@ -426,7 +412,7 @@ class NistBC:
             total_timesteps: gradient steps (one mini-batch each) for this call.
             epochs: alternatively, passes over the demonstration transitions.
         """
-        with _torch_threads(self.num_threads):
+        with torch_threads(self.num_threads):
             return self._learn(total_timesteps, epochs)
 
     def _learn(self, total_timesteps: int | None, epochs: float | None) -> "NistBC":
@@ -480,7 +466,7 @@ class NistBC:
         instr = instr[0] if not isinstance(instr, str) else instr
         ids, offsets = self._instruction_batch([instruction_ids(instr, self.config["instruction_buckets"])])
         self.policy.eval()
-        with th.no_grad(), _torch_threads(self.num_threads):
+        with th.no_grad(), torch_threads(self.num_threads):
             logits = self.policy(self._image_batch(per_camera, augment=False), ids, offsets)[0]
         if deterministic:
             bins = logits.argmax(-1)

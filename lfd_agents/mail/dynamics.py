@@ -26,7 +26,6 @@ particle with its nearest sub-sampled particle.
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any, Iterable
@@ -34,6 +33,8 @@ from typing import Any, Iterable
 import numpy as np
 import torch
 from torch import nn
+
+from lfd_agents.threads import torch_threads
 
 
 @dataclass
@@ -117,18 +118,6 @@ class ParticleDynamicsModel(nn.Module):
         hb = h.reshape(b * t, 1, -1).expand(b * t, k, h.shape[-1])
         out = self.head(torch.cat([local.transpose(1, 2), hb, inp], dim=-1)) * self.disp_scale
         return out.reshape(b, t, k, 3), hidden
-
-
-@contextlib.contextmanager
-def _torch_threads(n: int):
-    """Temporarily run torch with ``n`` intra-op threads (``n <= 0``: unchanged)."""
-    old = torch.get_num_threads()
-    if n > 0:
-        torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(old)
 
 
 def subsample_indices(num_particles: int, num_points: int, grid: tuple[int, int] | None = None) -> np.ndarray:
@@ -242,7 +231,7 @@ class LearnedDynamics:
         dt = self._tensor(ds)[:, None] / scale
         gen = torch.Generator().manual_seed(self.seed + len(self.history))
         self.model.train()
-        with _torch_threads(self.config.num_threads):
+        with torch_threads(self.config.num_threads):
             losses = self._epochs(xt, at, dt, int(epochs), gen, progress)
         self.history += losses
         return losses
@@ -286,7 +275,7 @@ class LearnedDynamics:
         cur = self._tensor(pts)
         hidden = None
         self.model.eval()
-        with _torch_threads(self.config.num_threads):
+        with torch_threads(self.config.num_threads):
             for t in range(horizon):
                 disp, hidden = self.model(cur[:, None], acts[:, t:t + 1], hidden)
                 cur = cur + disp[:, 0]

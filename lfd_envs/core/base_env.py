@@ -19,6 +19,33 @@ from lfd_envs.core.errors import check_choice, check_image_size, strict_kwargs
 from lfd_envs.core.variants import VariantSplit
 
 OBS_MODES = ("state", "image", "state+image")
+RESET_OPTIONS = ("split", "variant")
+
+
+def check_reset_options(options: dict[str, Any] | None) -> dict[str, Any]:
+    """Copy of ``reset`` ``options`` (``{}`` for None); ``ValueError`` naming unknown keys."""
+    options = dict(options or {})
+    unknown = sorted(set(options) - set(RESET_OPTIONS))
+    if unknown:
+        raise ValueError(f"unknown reset options {unknown}; valid options are {list(RESET_OPTIONS)}")
+    return options
+
+
+def observation_space(obs_mode: str, image_size: tuple[int, int], state_space: spaces.Space,
+                      particles_space: spaces.Space | None = None) -> spaces.Space:
+    """Observation space of one env for ``obs_mode``: the state space, a uint8 ``(h, w, 3)``
+    image, a ``Dict`` of both (``"state+image"``) or the particle space (``"particles"``)."""
+    h, w = image_size
+    image = spaces.Box(0, 255, (h, w, 3), np.uint8)
+    if obs_mode == "state":
+        return state_space
+    if obs_mode == "image":
+        return image
+    if obs_mode == "state+image":
+        return spaces.Dict({"state": state_space, "image": image})
+    if obs_mode == "particles" and particles_space is not None:
+        return particles_space
+    raise ValueError(f"obs_mode {obs_mode!r} has no observation space here")
 
 
 class LfdEnv(gym.Env):
@@ -88,17 +115,8 @@ class LfdEnv(gym.Env):
         self.observation_space = self._observation_space_for(self.obs_mode)
 
     def _observation_space_for(self, obs_mode: str) -> spaces.Space:
-        h, w = self.image_size
-        image = spaces.Box(0, 255, (h, w, 3), np.uint8)
-        if obs_mode == "state":
-            return self.state_space
-        if obs_mode == "image":
-            return image
-        if obs_mode == "state+image":
-            return spaces.Dict({"state": self.state_space, "image": image})
-        if obs_mode == "particles":
-            return self.particles_space
-        raise ValueError(f"obs_mode must be one of {self.supported_obs_modes}, got {obs_mode!r}")
+        check_choice("obs_mode", obs_mode, self.supported_obs_modes)
+        return observation_space(obs_mode, self.image_size, self.state_space, getattr(self, "particles_space", None))
 
     # ------------------------------------------------------------------ hooks for tasks
     state_space: spaces.Box
@@ -155,10 +173,7 @@ class LfdEnv(gym.Env):
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        options = dict(options or {})
-        unknown = sorted(set(options) - {"variant", "split"})
-        if unknown:
-            raise ValueError(f"unknown reset options {unknown}; valid options are ['split', 'variant']")
+        options = check_reset_options(options)
         split = options.get("split", "train")
         n = self.variants.size(split)  # validates split
         super().reset(seed=seed)

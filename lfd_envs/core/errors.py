@@ -17,10 +17,13 @@ def check_choice(name: str, value: Any, choices: Iterable[Any]) -> Any:
     return value
 
 
-def check_int_range(name: str, value: Any, low: int, high: int) -> int:
-    """Return ``value`` as int if ``low <= value <= high``, else raise ``ValueError``."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not low <= value <= high:
-        raise ValueError(f"{name} must be an int in [{low}, {high}], got {value!r}")
+def check_int_range(name: str, value: Any, low: int, high: int | None = None) -> int:
+    """Return ``value`` as int if ``low <= value <= high`` (no upper bound when ``high`` is None),
+    else raise ``ValueError`` (bools are rejected)."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low or (
+            high is not None and value > high):
+        bound = f">= {low}" if high is None else f"in [{low}, {high}]"
+        raise ValueError(f"{name} must be an int {bound}, got {value!r}")
     return int(value)
 
 

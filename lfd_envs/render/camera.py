@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from lfd_envs.core.errors import check_int_range
+
 __all__ = ["Camera"]
 
 
@@ -162,7 +164,4 @@ class Camera:
 
 
 def _check_size(width: Any, height: Any) -> tuple[int, int]:
-    for name, value in (("width", width), ("height", height)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise ValueError(f"{name} must be an int >= 1, got {value!r}")
-    return int(width), int(height)
+    return check_int_range("width", width, 1), check_int_range("height", height, 1)

@@ -7,6 +7,8 @@ from typing import Any
 
 import numpy as np
 
+from lfd_envs.core.errors import check_int_range
+
 __all__ = ["save_png", "tile_images"]
 
 
@@ -50,8 +52,7 @@ def save_png(path: str | os.PathLike, image: Any, scale: int = 1) -> str:
         if not np.isfinite(img).all():
             raise ValueError("image contains NaN or inf")
         img = np.clip(np.round(img.astype(np.float64) * 255.0), 0, 255).astype(np.uint8)
-    if isinstance(scale, bool) or not isinstance(scale, (int, np.integer)) or scale < 1:
-        raise ValueError(f"scale must be an int >= 1, got {scale!r}")
+    scale = check_int_range("scale", scale, 1)
     if scale > 1:
         img = np.repeat(np.repeat(img, scale, axis=0), scale, axis=1)
     path = os.fspath(path)

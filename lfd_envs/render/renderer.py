@@ -20,6 +20,8 @@ from typing import Any, Sequence
 import numpy as np
 import warp as wp
 
+from lfd_envs.core.errors import check_int_range
+
 from .camera import Camera
 from .raycast import (
     ROUND_CLUSTER,
@@ -236,11 +238,8 @@ class Renderer:
         supersample: int = 1,
         rebuild_every: int = 0,
     ) -> None:
-        for name, value in (("width", width), ("height", height)):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= value <= _MAX_PIXELS:
-                raise ValueError(f"{name} must be an int in [1, {_MAX_PIXELS}], got {value!r}")
-        self.width = int(width)
-        self.height = int(height)
+        self.width = check_int_range("width", width, 1, _MAX_PIXELS)
+        self.height = check_int_range("height", height, 1, _MAX_PIXELS)
         if camera is not None and not isinstance(camera, Camera):
             raise ValueError(f"camera must be a Camera or None, got {type(camera).__name__}")
         self.camera = DEFAULT_CAMERA if camera is None else camera
@@ -257,12 +256,8 @@ class Renderer:
         self.ambient = ambient
         self.shadows = shadows
         self.smooth_shading = smooth_shading
-        if isinstance(supersample, bool) or not isinstance(supersample, (int, np.integer)) or not 1 <= supersample <= 4:
-            raise ValueError(f"supersample must be an int in [1, 4], got {supersample!r}")
-        self.supersample = int(supersample)
-        if isinstance(rebuild_every, bool) or not isinstance(rebuild_every, (int, np.integer)) or rebuild_every < 0:
-            raise ValueError(f"rebuild_every must be an int >= 0, got {rebuild_every!r}")
-        self.rebuild_every = int(rebuild_every)
+        self.supersample = check_int_range("supersample", supersample, 1, 4)
+        self.rebuild_every = check_int_range("rebuild_every", rebuild_every, 0)
         self._settings_key: tuple | None = None
         self._check_settings()  # validate now, not at the first render
 
@@ -403,9 +398,7 @@ class Renderer:
 
     def _num_worlds(self, layers: list, num_worlds: int | None) -> int:
         if num_worlds is not None:
-            if isinstance(num_worlds, bool) or not isinstance(num_worlds, (int, np.integer)) or num_worlds < 1:
-                raise ValueError(f"num_worlds must be an int >= 1, got {num_worlds!r}")
-            return int(num_worlds)
+            return check_int_range("num_worlds", num_worlds, 1)
         found = set()
         for layer in layers:
             for value in (getattr(layer, "points", None), getattr(layer, "centers", None)):

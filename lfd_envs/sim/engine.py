@@ -38,15 +38,13 @@ from typing import Any, Sequence
 import numpy as np
 import warp as wp
 
+from lfd_envs.core.errors import check_int_range
+
 from . import kernels as K
 from .builder import SceneBuilder, StaticBox
 from .params import SimParams
 
 __all__ = ["ParticleSim"]
-
-_STATE_KEYS_PER_PARTICLE = ("positions", "velocities", "inv_mass", "attach", "attach_offset",
-                            "rest", "radius", "sc_r")
-
 
 def _next_pow2(n: int) -> int:
     p = 1
@@ -77,10 +75,8 @@ class ParticleSim:
                  params: SimParams | None = None, num_pickers: int = 1, device: str = "cpu",
                  use_graph: bool = True) -> None:
         if isinstance(builders, SceneBuilder):
-            nw = 1 if num_worlds is None else num_worlds
-            if isinstance(nw, bool) or not isinstance(nw, (int, np.integer)) or nw < 1:
-                raise ValueError(f"num_worlds must be an int >= 1, got {num_worlds!r}")
-            builders = [builders] * int(nw)
+            nw = 1 if num_worlds is None else check_int_range("num_worlds", num_worlds, 1)
+            builders = [builders] * nw
         else:
             builders = list(builders)
             if not builders:
@@ -94,8 +90,7 @@ class ParticleSim:
             params = SimParams()
         if not isinstance(params, SimParams):
             raise TypeError(f"params must be a SimParams, got {type(params).__name__}")
-        if isinstance(num_pickers, bool) or not isinstance(num_pickers, (int, np.integer)) or num_pickers < 0:
-            raise ValueError(f"num_pickers must be an int >= 0, got {num_pickers!r}")
+        check_int_range("num_pickers", num_pickers, 0)
 
         wp.init()
         self._device = wp.get_device(device)
@@ -603,35 +598,14 @@ class ParticleSim:
         per-world geometry (rest shapes, rest lengths, radii, static boxes) so that
         :meth:`set_state` reproduces the future bit for bit, even into another world.
         """
-        W, N, P, B, S, nnz = self._W, self._N, self._P, self._B, self._S, self._nnz
-
-        def get(arr, n, shape):
-            return arr.numpy()[: W * n].reshape((W,) + shape).copy()
-
-        st = dict(
-            positions=get(self.particle_q, N, (N, 3)),
-            velocities=get(self.particle_v, N, (N, 3)),
-            inv_mass=get(self._inv_mass, N, (N,)),
-            attach=get(self._attach, N, (N,)),
-            attach_offset=get(self._attach_off, N, (N, 3)),
-            rest=get(self._rest, N, (N, 3)),
-            radius=get(self._radius, N, (N,)),
-            sc_r=get(self._sc_r, N, (N,)),
-            con_rest=get(self._con_rest, nnz, (nnz,)),
-            picker_positions=self._picker_pos.copy(),
-            grasped=self._grasped.copy(),
-            box_quat=get(self._box_quat, B, (B, 4)),
-            box_pos=get(self._box_pos, B, (B, 3)),
-            box_rot=get(self._box_rot, B, (B, 3, 3)),
-            box_half_extents=get(self._box_he, B, (B, 3)),
-            box_kinematic=get(self._box_kin, B, (B,)),
-            static_pos=get(self._sbox_pos, S, (S, 3)),
-            static_rot=get(self._sbox_rot, S, (S, 3, 3)),
-            static_half_extents=get(self._sbox_he, S, (S, 3)),
-        )
-        if world is not None:
-            w = self._check_world(world)
-            st = {k: v[w].copy() for k, v in st.items()}
+        worlds = slice(None) if world is None else self._check_world(world)
+        st = {}
+        for key, (attr, count_attr, shape_fn, _) in self._STATE_SPEC.items():
+            n = getattr(self, count_attr)
+            per_world = getattr(self, attr).numpy()[: self._W * n].reshape((self._W,) + shape_fn(self))
+            st[key] = per_world[worlds].copy()
+        st["picker_positions"] = self._picker_pos[worlds].copy()
+        st["grasped"] = self._grasped[worlds].copy()
         return st
 
     _STATE_SPEC = {

@@ -38,8 +38,8 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 from gymnasium.vector.utils import batch_space
 
-from lfd_envs.core.base_env import OBS_MODES, LfdEnv
-from lfd_envs.core.errors import check_choice, check_image_size, strict_kwargs
+from lfd_envs.core.base_env import OBS_MODES, LfdEnv, check_reset_options, observation_space
+from lfd_envs.core.errors import check_choice, check_image_size, check_int_range, strict_kwargs
 from lfd_envs.core.variants import VariantSplit
 from lfd_envs.tasks.particle_batch import ParticleBatch
 from lfd_envs.tasks.particle_task import ParticleTask
@@ -63,16 +63,8 @@ def _check_device(device: Any) -> str:
     return str(device)
 
 
-def _make_task(cls: type[ParticleTask], options: dict[str, Any]) -> ParticleTask:
-    return cls(**options)
-
-
 def _horizon(task: ParticleTask, action_mode: str, horizon: Any) -> int:
-    if horizon is None:
-        return task.horizon(action_mode)
-    if isinstance(horizon, bool) or not isinstance(horizon, (int, np.integer)) or horizon < 1:
-        raise ValueError(f"horizon must be an int >= 1, got {horizon!r}")
-    return int(horizon)
+    return task.horizon(action_mode) if horizon is None else check_int_range("horizon", horizon, 1)
 
 
 class _SpacesMixin:
@@ -108,7 +100,7 @@ class ParticleEnv(_SpacesMixin, LfdEnv):
                image_size: Any, device: str, render_mode: str | None, horizon: int | None) -> None:
         check_choice("action_mode", action_mode, ACTION_MODES)
         device = _check_device(device)
-        task = _make_task(self.task_class, {**self.task_options, **task_options})
+        task = self.task_class(**{**self.task_options, **task_options})
         self.task_name = task.name
         self._init_contract(obs_mode=obs_mode or task.default_obs_mode,
                             image_size=image_size, render_mode=render_mode,
@@ -214,13 +206,12 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
 
     def _setup(self, num_envs: int, task_options: dict[str, Any], action_mode: str, obs_mode: str | None,
                image_size: Any, device: str, render_mode: str | None, horizon: int | None) -> None:
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs must be an int >= 1, got {num_envs!r}")
+        num_envs = check_int_range("num_envs", num_envs, 1)
         check_choice("action_mode", action_mode, ACTION_MODES)
         device = _check_device(device)
-        task = _make_task(self.task_class, {**self.task_options, **task_options})
+        task = self.task_class(**{**self.task_options, **task_options})
         self.task = task
-        self.num_envs = int(num_envs)
+        self.num_envs = num_envs
         self.action_mode = action_mode
         self.obs_mode = check_choice("obs_mode", obs_mode or task.default_obs_mode,
                                      PARTICLE_OBS_MODES)
@@ -233,12 +224,7 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
         self.variants = VariantSplit(task.name)
         self.batch = ParticleBatch(task, self.num_envs, action_mode, device)
         self.single_action_space, state, particles = self._task_spaces()
-        h, w = self.image_size
-        image = spaces.Box(0, 255, (h, w, 3), np.uint8)
-        self.single_observation_space = {
-            "state": state, "image": image, "particles": particles,
-            "state+image": spaces.Dict({"state": state, "image": image}),
-        }[self.obs_mode]
+        self.single_observation_space = observation_space(self.obs_mode, self.image_size, state, particles)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         n = self.num_envs
@@ -250,10 +236,7 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
 
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | Sequence[int] | None = None, options: dict[str, Any] | None = None):
-        options = dict(options or {})
-        unknown = sorted(set(options) - {"variant", "split"})
-        if unknown:
-            raise ValueError(f"unknown reset options {unknown}; valid options are ['split', 'variant']")
+        options = check_reset_options(options)
         n = self.num_envs
         if seed is not None:
             seeds = [int(seed) + i for i in range(n)] if np.isscalar(seed) else list(seed)

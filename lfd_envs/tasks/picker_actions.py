@@ -16,6 +16,7 @@ future never depends on the other worlds of a batch (a vector env equals single 
 
 from __future__ import annotations
 
+import functools
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import ClassVar
@@ -25,6 +26,11 @@ from gymnasium import spaces
 
 __all__ = ["Workspace", "ActionMode", "DeltaActions", "PickPlaceActions", "PickPlaceSchedule",
            "ACTION_MODES", "make_action_mode", "carry_point", "arc_length", "FAST_FREE_MOVES"]
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
 
 
 @dataclass(frozen=True)
@@ -44,17 +50,23 @@ class Workspace:
         if lo.shape != (3,) or hi.shape != (3,) or np.any(hi - lo <= 2 * self.margin):
             raise ValueError(f"workspace needs low < high (by more than 2*margin), got {self.low}, {self.high}")
 
-    @property
+    @functools.cached_property
     def lo(self) -> np.ndarray:
-        return np.asarray(self.low, dtype=np.float64)
+        """``low`` as a read-only float64 array (computed once)."""
+        return _read_only(np.asarray(self.low, dtype=np.float64))
 
-    @property
+    @functools.cached_property
     def hi(self) -> np.ndarray:
-        return np.asarray(self.high, dtype=np.float64)
+        """``high`` as a read-only float64 array (computed once)."""
+        return _read_only(np.asarray(self.high, dtype=np.float64))
+
+    @functools.cached_property
+    def _clip_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        return _read_only(self.lo + self.margin), _read_only(self.hi - self.margin)
 
     def clip(self, pos: np.ndarray) -> np.ndarray:
         """Clip picker centres ``(..., 3)`` into ``[low + margin, high - margin]``."""
-        return np.clip(pos, self.lo + self.margin, self.hi - self.margin)
+        return np.clip(pos, *self._clip_bounds)
 
     def to_world(self, a: np.ndarray) -> np.ndarray:
         """Map normalised coordinates in [-1, 1] ``(..., 3)`` to metres (not clipped)."""
@@ -278,9 +290,9 @@ class PickPlaceActions(ActionMode):
         t0 = np.zeros(w, dtype=np.int64)  # first frame of the current phase, per world
         frames = np.arange(total)[:, None]  # (T, 1)
         for end, grab, max_frames, speed, arc in self.phases(pick, place):
-            length = np.linalg.norm(end - start, axis=-1) if arc is None else arc_length(start, end, arc)
             if max_frames == 0:
                 continue
+            length = np.linalg.norm(end - start, axis=-1) if arc is None else arc_length(start, end, arc)
             if speed > 0:
                 n = np.clip(np.ceil(length.max(axis=-1) / speed - 1e-9), 1, max_frames).astype(np.int64)  # (W,)
             else:  # fixed-length phase (hold)
