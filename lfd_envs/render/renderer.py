@@ -390,6 +390,15 @@ class Renderer:
             setattr(self._scene, name, value)
             self._scene_vals[name] = value
 
+    def _upload_tables(self, tables: dict[str, np.ndarray]) -> None:
+        """Copy host tables into their device buffers and rebind them in the scene struct."""
+        for name, values in tables.items():
+            buf = self._bufs[name]
+            buf.resize(values.shape[0])
+            buf.host[:] = values
+            buf.sync()
+            self._set_array(name)
+
     def _set_array(self, name: str) -> None:
         arr = self._bufs[name].array
         if self._scene_vals.get(name) is not arr:
@@ -669,12 +678,7 @@ class Renderer:
             "round_bound_off": meta[4],
             "round_bound_layer": np.concatenate(bound_layer),
         }
-        for name, values in tables.items():
-            buf = self._bufs[name]
-            buf.resize(values.shape[0])
-            buf.host[:] = values
-            buf.sync()
-            self._set_array(name)
+        self._upload_tables(tables)
         for name, size in (("pts", n_pts), ("round_lo", n_bounds), ("round_hi", n_bounds)):
             self._bufs[name].resize(size)
             self._set_array(name)
@@ -769,12 +773,7 @@ class Renderer:
             "box_lo": lo,
             "box_hi": hi,
         }
-        for name, values in tables.items():
-            buf = self._bufs[name]
-            buf.resize(values.shape[0])
-            buf.host[:] = values
-            buf.sync()
-            self._set_array(name)
+        self._upload_tables(tables)
         self._box_sig = sig
 
 
