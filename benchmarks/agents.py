@@ -36,6 +36,24 @@ class RandomAgent:
         return self.action_space.sample(), None
 
 
+class ZeroAgent:
+    """The all-zero action ("do nothing": pickers stay, grasp flags off); the floor a learner must clear."""
+
+    needs_training = False
+
+    def __init__(self, env: gym.Env, seed: int = 0):
+        space = env.action_space
+        if not isinstance(space, gym.spaces.Box):
+            raise TypeError(f"the zero agent needs a Box action space, got {space}")
+        self._action = np.clip(np.zeros(space.shape, space.dtype), space.low, space.high)
+
+    def learn(self, total_timesteps: int, **_: Any) -> "ZeroAgent":
+        return self
+
+    def predict(self, obs: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True):
+        return self._action.copy(), None
+
+
 class ExpertAgent:
     """The task's scripted expert (:func:`lfd_envs.experts.make_expert`); the upper reference row."""
 
@@ -139,6 +157,7 @@ def _lfd_demo_agent(class_name: str) -> AgentFactory:
 
 BUILTIN_AGENTS: dict[str, AgentFactory] = {
     "random": lambda env, seed=0, **kw: RandomAgent(env, seed),
+    "zero": lambda env, seed=0, **kw: ZeroAgent(env, seed),
     "expert": lambda env, seed=0, **kw: ExpertAgent(env, seed, **kw),
     "sac": _sb3("SAC"),
     "td3": _sb3("TD3"),

@@ -115,7 +115,7 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
             resolve_agent(name)  # fail early with the list of valid agents
         for agent, kwargs in cell_agents.items():
             kwargs = dict(kwargs)
-            if device and agent not in ("random", "expert"):
+            if device and agent not in ("random", "expert", "zero"):
                 kwargs["device"] = device
             for seed in seeds if seeds is not None else spec.get("seeds", suite.get("seeds", [0])):
                 cells.append(Cell(
