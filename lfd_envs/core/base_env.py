@@ -1,4 +1,4 @@
-"""The environment contract shared by every lfd env (SPEC §3).
+"""The environment contract shared by every lfd env.
 
 A task subclasses :class:`LfdEnv` and only describes the task through a handful of hooks
 (``_setup_variant``, ``_apply_action``, ``_state_obs``, ``_render``, ``_performance``,
@@ -16,6 +16,7 @@ import numpy as np
 from gymnasium import spaces
 
 from lfd_envs.core.errors import check_choice, check_image_size, strict_kwargs
+from lfd_envs.core.state import check_episode, check_state_layout, episode_arrays
 from lfd_envs.core.variants import VariantSplit
 
 OBS_MODES = ("state", "image", "state+image")
@@ -165,7 +166,7 @@ class LfdEnv(gym.Env):
         return float(performance - prev_performance)
 
     def normalized_performance(self, performance: float) -> float:
-        """p̂ = (p - p0) / (p_opt - p0) relative to the episode's start state (SPEC §3)."""
+        """p̂ = (p - p0) / (p_opt - p0) relative to the episode's start state."""
         denom = self.performance_optimum - self._p0
         if abs(denom) < 1e-9:
             return 1.0 if performance >= self.performance_optimum - 1e-9 else 0.0
@@ -255,39 +256,53 @@ class LfdEnv(gym.Env):
         return self._step_count
 
     # ------------------------------------------------------------------ state
+    def _task_identity(self) -> dict[str, Any]:
+        """What makes a state belong to this task (stored as ``episode/task_id``): the task name
+        plus construction arguments that change the task. Override to add arguments."""
+        return {"task": self.task_name}
+
+    def _check_sim_state(self, sim: dict[str, np.ndarray]) -> None:
+        """Check task-specific value ranges of the ``sim/*`` part of a state (keys without the
+        prefix; shapes, dtypes and finiteness are already checked). ``ValueError`` naming the key."""
+
+    def _state_reference(self) -> dict[str, np.ndarray]:
+        """Layout (keys, shapes, dtypes) of this env's states, for checking incoming ones."""
+        try:
+            sim = self._get_sim_state()
+        except (AttributeError, TypeError):
+            raise RuntimeError("call reset() before set_state()") from None
+        reference = {f"sim/{k}": np.asarray(v) for k, v in sim.items()}
+        reference.update(episode_arrays("train", 0, 0, 0.0, 0.0, self._task_identity()))
+        return reference
+
     def get_state(self) -> dict[str, np.ndarray]:
         """Full simulator + episode state as a flat dict of numpy arrays (copies)."""
         if self._variant_index < 0:
             raise RuntimeError("call reset() before get_state()")
         state = {f"sim/{k}": np.array(v, copy=True) for k, v in self._get_sim_state().items()}
-        state["episode/split"] = np.array(0 if self._variant_split == "train" else 1, dtype=np.int64)
-        state["episode/variant"] = np.array(self._variant_index, dtype=np.int64)
-        state["episode/step"] = np.array(self._step_count, dtype=np.int64)
-        state["episode/p0"] = np.array(self._p0, dtype=np.float64)
-        state["episode/prev_performance"] = np.array(self._prev_perf, dtype=np.float64)
+        state.update(episode_arrays(self._variant_split, self._variant_index, self._step_count, self._p0,
+                                    self._prev_perf, self._task_identity()))
         return state
 
     def set_state(self, state: dict[str, np.ndarray]) -> None:
         """Restore a state from :meth:`get_state`; the futures of both are identical.
 
-        The variant is rebuilt first if it differs from the current one. A malformed state
-        raises ``ValueError`` before anything is changed.
+        The whole state is checked first (keys, shapes, dtypes, finiteness, episode counters,
+        task identity and the task's value ranges): a bad state raises ``TypeError`` or
+        ``ValueError`` naming the key and changes nothing. The variant is rebuilt if it differs
+        from the current one.
         """
-        required = {"episode/split", "episode/variant", "episode/step", "episode/p0", "episode/prev_performance"}
-        missing = sorted(required - set(state))
-        if missing:
-            raise ValueError(f"state is missing keys {missing}; pass a dict from get_state()")
-        split = "train" if int(state["episode/split"]) == 0 else "eval"
-        k = int(state["episode/variant"])
-        self.variants.global_id(split, k)  # validates before changing anything
-        sim = {key[4:]: np.asarray(v) for key, v in state.items() if key.startswith("sim/")}
-        if (split, k) != (self._variant_split, self._variant_index):
-            self._setup_variant(self.variants.rng(split, k))
-            self._variant_split, self._variant_index = split, k
+        arrays = check_state_layout(state, self._state_reference())
+        episode = check_episode(arrays, self.variants, self.horizon, self._task_identity())
+        sim = {key[4:]: v for key, v in arrays.items() if key.startswith("sim/")}
+        self._check_sim_state(sim)
+        if (episode.split, episode.variant) != (self._variant_split, self._variant_index):
+            self._setup_variant(self.variants.rng(episode.split, episode.variant))
+            self._variant_split, self._variant_index = episode.split, episode.variant
         self._set_sim_state(sim)
-        self._step_count = int(state["episode/step"])
-        self._p0 = float(state["episode/p0"])
-        self._prev_perf = float(state["episode/prev_performance"])
+        self._step_count = episode.step
+        self._p0 = episode.p0
+        self._prev_perf = episode.prev_performance
 
     def current_observation(self) -> Any:
         """Observation of the current state (e.g. after :meth:`set_state`)."""

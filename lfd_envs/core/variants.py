@@ -16,7 +16,7 @@ import numpy as np
 SPLITS = ("train", "eval")
 
 
-def _stable_hash(name: str) -> int:
+def stable_hash(name: str) -> int:
     """A hash of ``name`` that is the same in every process (unlike ``hash``)."""
     return int.from_bytes(hashlib.sha256(name.encode()).digest()[:8], "little")
 
@@ -49,7 +49,7 @@ class VariantSplit:
 
     def rng(self, split: str, k: int) -> np.random.Generator:
         """Generator that produces the parameters of variant ``k`` of ``split``."""
-        return np.random.default_rng([_stable_hash(self.task_name), self.global_id(split, k)])
+        return np.random.default_rng([stable_hash(self.task_name), self.global_id(split, k)])
 
     @staticmethod
     def _check_split(split: str) -> None:

@@ -62,6 +62,7 @@ from gymnasium import spaces
 
 from lfd_envs.core.base_env import LfdEnv
 from lfd_envs.core.errors import check_choice
+from lfd_envs.core.state import check_range
 from lfd_envs.mujoco.rendering import make_renderer
 
 #: bounds used for hinge joints without limits (documented in ``joint_limits``)
@@ -440,6 +441,9 @@ class MujocoEnv(LfdEnv):
         d.time = float(state["time"])
         self._path_reference = None
         mujoco.mj_forward(self.model, d)
+
+    def _check_sim_state(self, sim: dict[str, np.ndarray]) -> None:
+        check_range("sim/time", sim["time"], 0.0)
 
     def _get_task_state(self) -> dict[str, np.ndarray]:
         """Task extras saved with the simulator state (e.g. the goal). Default: none."""

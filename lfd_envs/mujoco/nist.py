@@ -59,6 +59,7 @@ from gymnasium import spaces
 
 from lfd_envs.core.base_env import LfdEnv
 from lfd_envs.core.errors import check_choice
+from lfd_envs.core.state import check_range
 from lfd_envs.mujoco import nist_board as board
 from lfd_envs.mujoco.rendering import configure_gl_backend, make_renderer
 
@@ -404,6 +405,17 @@ class NistBoardInsertEnv(LfdEnv):
             "qacc_warmstart": d.qacc_warmstart.copy(), "time": np.array(d.time),
             "target": self._target.copy(), "task": np.array(self._task_index, dtype=np.int64),
         }
+
+    def _task_identity(self) -> dict[str, Any]:
+        return {"task": self.task_name, "fit": self.fit, "instruction": tuple(t.instruction for t in self.tasks)}
+
+    def _check_sim_state(self, sim: dict[str, np.ndarray]) -> None:
+        check_range("sim/task", sim["task"], 0, len(self._task_list) - 1)
+        check_range("sim/time", sim["time"], 0.0)
+        target = sim["target"]
+        if np.any(target < WORKSPACE_LOW - 1e-9) or np.any(target > WORKSPACE_HIGH + 1e-9):
+            raise ValueError(f"state['sim/target'] must lie in the workspace [{WORKSPACE_LOW}, {WORKSPACE_HIGH}], "
+                             f"got {target}")
 
     def _set_sim_state(self, state: dict[str, np.ndarray]) -> None:
         required = {"qpos", "qvel", "ctrl", "qacc_warmstart", "time", "target", "task"}

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from lfd_envs.core.state import check_range
 from lfd_envs.tasks.particle_task import Context, ParticleTask
 from lfd_envs.tasks.picker_actions import ActionMode, make_action_mode
 
@@ -25,6 +26,8 @@ __all__ = ["ParticleBatch", "StartState"]
 #: where pickers wait while a variant is prepared (far above the scene)
 PARK_HEIGHT = 2.0
 CTX_PREFIX = "ctx/"
+#: bound (m) of positions accepted by :meth:`ParticleBatch.check_state` (the scenes are about 1 m)
+STATE_POSITION_BOUND = 100.0
 
 
 class StartState:
@@ -193,6 +196,27 @@ class ParticleBatch:
         state = self.sim.get_state(world)
         state.update({CTX_PREFIX + k: np.array(v[world], copy=True) for k, v in self.ctx.items()})
         return state
+
+    def identity(self) -> dict[str, Any]:
+        """Task identity of this batch's states: the task name (pinned or not included). The
+        picker count and resolution show in the state's shapes, so a teacher's state can be
+        turned into a student's (another picker count) by replacing the picker entries."""
+        return {"task": self.task.name}
+
+    def check_state(self, state: dict[str, np.ndarray]) -> None:
+        """Value ranges of one world's state (layout already checked); ``ValueError`` naming the key."""
+        p = self.task.num_pickers
+        check_range("sim/inv_mass", state["inv_mass"], 0.0)
+        check_range("sim/radius", state["radius"], 0.0, strict_low=True)
+        check_range("sim/sc_r", state["sc_r"], 0.0)
+        check_range("sim/con_rest", state["con_rest"], 0.0)
+        check_range("sim/attach", state["attach"], -1, p - 1)
+        check_range("sim/box_kinematic", state["box_kinematic"], 0, 1)
+        check_range("sim/box_half_extents", state["box_half_extents"], 0.0, strict_low=True)
+        check_range("sim/static_half_extents", state["static_half_extents"], 0.0, strict_low=True)
+        for key in ("positions", "rest", "box_pos", "static_pos"):
+            check_range(f"sim/{key}", np.abs(state[key]), high=STATE_POSITION_BOUND)
+        check_range("sim/picker_positions", np.abs(state["picker_positions"]), high=PARK_HEIGHT + 1.0)
 
     def set_state(self, world: int, state: dict[str, np.ndarray]) -> None:
         """Restore one world from :meth:`get_state` (``ValueError`` on a malformed state)."""

@@ -40,6 +40,7 @@ from gymnasium.vector.utils import batch_space
 
 from lfd_envs.core.base_env import OBS_MODES, LfdEnv, check_reset_options, observation_space
 from lfd_envs.core.errors import check_choice, check_image_size, check_int_range, strict_kwargs
+from lfd_envs.core.state import check_episode, check_state_layout, episode_arrays
 from lfd_envs.core.variants import VariantSplit
 from lfd_envs.tasks.particle_batch import ParticleBatch
 from lfd_envs.tasks.particle_task import ParticleTask
@@ -152,6 +153,12 @@ class ParticleEnv(_SpacesMixin, LfdEnv):
 
     def _get_sim_state(self) -> dict[str, np.ndarray]:
         return self.batch.get_state(0)
+
+    def _task_identity(self) -> dict[str, Any]:
+        return self.batch.identity()
+
+    def _check_sim_state(self, sim: dict[str, np.ndarray]) -> None:
+        self.batch.check_state(sim)
 
     def _set_sim_state(self, state: dict[str, np.ndarray]) -> None:
         self.batch.set_state(0, state)
@@ -299,20 +306,32 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
     # ------------------------------------------------------------------ state of one world
     def get_state(self, index: int) -> dict[str, np.ndarray]:
         """Engine state + task context + episode counters of world ``index`` (copies)."""
+        index = check_int_range("index", index, 0, self.num_envs - 1)
         state = {f"sim/{k}": v for k, v in self.batch.get_state(index).items()}
-        state.update({"episode/split": np.array(self._split[index]), "episode/variant": np.array(self._variant[index]),
-                      "episode/step": np.array(self._steps[index]), "episode/p0": np.array(self.batch.p0[index]),
-                      "episode/prev_performance": np.array(self._prev[index])})
+        split = "train" if self._split[index] == 0 else "eval"
+        state.update(episode_arrays(split, int(self._variant[index]), int(self._steps[index]),
+                                    float(self.batch.p0[index]), float(self._prev[index]), self.batch.identity()))
         return state
 
     def set_state(self, index: int, state: dict[str, np.ndarray]) -> None:
-        """Restore world ``index`` from :meth:`get_state` or a single env's ``get_state()``."""
-        self.batch.set_state(index, {k[4:]: v for k, v in state.items() if k.startswith("sim/")})
-        self._split[index] = int(state["episode/split"])
-        self._variant[index] = int(state["episode/variant"])
-        self._steps[index] = int(state["episode/step"])
-        self.batch.p0[index] = float(state["episode/p0"])
-        self._prev[index] = float(state["episode/prev_performance"])
+        """Restore world ``index`` from :meth:`get_state` or a single env's ``get_state()``.
+
+        The whole state is checked first (as in a single env's ``set_state``); a bad state raises
+        ``TypeError``/``ValueError`` naming the key and changes nothing.
+        """
+        index = check_int_range("index", index, 0, self.num_envs - 1)
+        reference = {f"sim/{k}": v for k, v in self.batch.get_state(index).items()}
+        reference.update(episode_arrays("train", 0, 0, 0.0, 0.0, self.batch.identity()))
+        arrays = check_state_layout(state, reference)
+        episode = check_episode(arrays, self.variants, self.horizon, self.batch.identity())
+        sim = {k[4:]: v for k, v in arrays.items() if k.startswith("sim/")}
+        self.batch.check_state(sim)
+        self.batch.set_state(index, sim)
+        self._split[index] = 0 if episode.split == "train" else 1
+        self._variant[index] = episode.variant
+        self._steps[index] = episode.step
+        self.batch.p0[index] = episode.p0
+        self._prev[index] = episode.prev_performance
 
     # ------------------------------------------------------------------ internals
     def _reset_world(self, i: int, split: str, k: int | None, size: int | None) -> None:
