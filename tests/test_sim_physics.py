@@ -236,3 +236,21 @@ def test_coarse_cloth_fold_stays_folded():
     assert moved_edge_y > 0.3 * size, moved_edge_y  # unfolded it would be at -0.5 * size
     assert gap < 0.13 * size, gap  # without friction and bend scaling: 0.15 * size
     assert grid[..., 2].max() < 0.2 * size  # no open loop standing up (before the fix: 0.24 * size)
+
+
+@pytest.mark.parametrize("trigger, lifts", [("level", True), ("edge", False)])
+def test_picker_lowered_with_flag_on_grasps_on_contact(trigger, lifts):
+    """SoftGym's rule ("level", the default): a picker whose grasp flag is already on grasps as
+    soon as a particle is within reach and lifts the cloth; with "edge" only a flag change grasps."""
+    b = SceneBuilder()
+    b.add_cloth(10, 10, 0.3, 0.3, center=(0, 0, 0.01))
+    sim = ParticleSim(b, params=SimParams(grasp_trigger=trigger, grasp_radius=0.04), num_pickers=1)
+    start = sim.positions[0, 0] + np.array([0.0, 0.0, 0.2])  # high above a corner, out of reach
+    sim.set_picker_positions(start[None, None])
+    on = np.ones((1, 1), bool)
+    path = [start + np.array([0, 0, -0.2 * k / 20]) for k in range(1, 21)]  # lower onto it ...
+    path += [path[-1] + np.array([0, 0, 0.3 * k / 30]) for k in range(1, 31)]  # ... and lift
+    for pos in path:
+        sim.step(pos[None, None], on)
+    assert (sim.attached[0] >= 0).any() == lifts
+    assert (sim.positions[0, :, 2].max() > 0.25) == lifts

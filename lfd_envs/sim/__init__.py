@@ -13,11 +13,12 @@ from lfd_envs import _warp  # noqa: F401  (quiet Warp before first use)
 from .builder import (BEND, SHEAR, STRETCH, ClothHandle, RigidBoxHandle, RopeHandle, SceneBuilder,
                       StaticBox)
 from .engine import ParticleSim
-from .params import GRASP_MODES, SimParams
+from .params import GRASP_MODES, GRASP_TRIGGERS, SimParams
 
 __all__ = [
     "SimParams",
     "GRASP_MODES",
+    "GRASP_TRIGGERS",
     "SceneBuilder",
     "ClothHandle",
     "RopeHandle",

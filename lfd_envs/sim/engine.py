@@ -181,6 +181,7 @@ class ParticleSim:
         for p in range(P):
             self._picker_pos[:, p] = (0.0, 0.1 * (p - 0.5 * (P - 1)), 0.3)
         self._grasped = np.zeros((W, P), bool)
+        self._holding = np.zeros((W, P), bool)  # picker holds at least one particle
 
         for w, e in enumerate(exports):
             self._write_world(w, e)
@@ -309,9 +310,11 @@ class ParticleSim:
             picker_targets: ``(W, P, 3)`` picker positions at the end of the frame; pickers move
                 linearly from their current position over the substeps.
             grasp: ``(W, P)`` bool (nonzero = grasp), or ``None`` to keep the current flags.
-                A False->True change attaches particles within ``params.grasp_radius`` of the
-                picker's position at the start of the frame (all of them in ``"radius"`` mode,
-                the closest free one in ``"closest"`` mode); True->False releases them.
+                A picker whose flag is on and that holds nothing (``params.grasp_trigger ==
+                "level"``, SoftGym) - or whose flag turns on (``"edge"``) - attaches particles
+                within ``params.grasp_radius`` of its position at the start of the frame (all of
+                them in ``"radius"`` mode, the closest free one in ``"closest"`` mode); a flag
+                turning off releases them.
 
         Raises:
             ValueError: wrong shapes, NaN/inf values.
@@ -357,6 +360,7 @@ class ParticleSim:
         path[0] = self._picker_pos.reshape(-1, 3)
         path[1:] = targets.reshape(F, W * P, 3)
         changes = np.concatenate([(flags[:1] != self._grasped[None]), flags[1:] != flags[:-1]]).any(axis=(1, 2))
+        level = self._params.grasp_trigger == "level"
         if self._device.is_cpu:
             start_view, end_view = self._pick_start.numpy(), self._pick_end.numpy()
 
@@ -370,7 +374,7 @@ class ParticleSim:
                 wp.copy(self._pick_start, dev_path, src_offset=f * W * P, count=W * P)
                 wp.copy(self._pick_end, dev_path, src_offset=(f + 1) * W * P, count=W * P)
         for f in range(F):
-            if changes[f]:
+            if changes[f] or (level and (flags[f] & ~self._holding).any()):
                 self._picker_pos = targets[f - 1] if f else self._picker_pos
                 self._grasp_events(np.array(flags[f], dtype=bool))
                 self._grasped = np.array(flags[f], dtype=bool)
@@ -396,7 +400,7 @@ class ParticleSim:
     def _grasp_events(self, g: np.ndarray) -> None:
         """Attach/release particles where the grasp flags ``g`` change; relax released worlds."""
         W, P = self._W, self._P
-        grab = g & ~self._grasped
+        grab = g & ~(self._holding if self._params.grasp_trigger == "level" else self._grasped)
         release = ~g & self._grasped
         if not (grab.any() or release.any()):
             return
@@ -410,6 +414,7 @@ class ParticleSim:
                           self.picker_q, self._events, self._N, P,
                           float(self._params.grasp_radius),
                           int(self._params.grasp_mode == "closest")])
+        self._update_holding()
         self._update_tethers()
         if release.any() and self._params.release_relaxation > 0:
             self._relax(release.any(axis=1))
@@ -669,6 +674,7 @@ class ParticleSim:
             self._picker_pos[worlds[0]] = pp
             self._grasped[worlds[0]] = gr
         self._sync_pickers()
+        self._update_holding()
         self._update_grid_params()
         self._update_tethers()
         self._update_stiffness_scale()
@@ -691,6 +697,7 @@ class ParticleSim:
         self._write_world(w, e)
         self._grasped = self._grasped.copy()
         self._grasped[w] = False
+        self._update_holding()
         self._update_grid_params()
         self._update_tethers()
         self._update_stiffness_scale()
@@ -811,6 +818,12 @@ class ParticleSim:
             ratio = 2.0 * p.bend_reference_spacing / np.maximum(rest[:, bend], 1e-12)
             scale[:, bend] = np.minimum(1.0, ratio ** p.bend_spacing_exponent)
         self._write_slice(self._con_kscale, 0, scale.reshape(-1))
+
+    def _update_holding(self) -> None:
+        """Recompute which pickers hold at least one particle (``(W, P)``, from the attachments)."""
+        W, N, P = self._W, self._N, self._P
+        attach = self._attach.numpy()[: W * N].reshape(W, N)
+        self._holding = (attach[:, :, None] == np.arange(P)[None, None, :]).any(axis=1) if N else np.zeros((W, P), bool)
 
     def _update_tethers(self) -> None:
         """Recompute the long-range attachments (after pins/grasps/state changes)."""

@@ -22,9 +22,10 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass, fields
 
-__all__ = ["SimParams", "GRASP_MODES"]
+__all__ = ["SimParams", "GRASP_MODES", "GRASP_TRIGGERS"]
 
 GRASP_MODES = ("closest", "radius")
+GRASP_TRIGGERS = ("level", "edge")
 
 
 @dataclass(frozen=True)
@@ -81,6 +82,11 @@ class SimParams:
         picker_radius: Radius (m) of a picker sphere (rendering; SoftGym cloth: 0.05).
         grasp_mode: ``"closest"`` attaches the single closest free particle within
             ``grasp_radius`` (SoftGym); ``"radius"`` attaches all free particles within it.
+        grasp_trigger: When a picker tries to grasp.  ``"level"`` (SoftGym/FleX): in every
+            frame in which its grasp flag is on and it holds nothing, so a picker lowered onto
+            the cloth with the flag already on grasps once it is close enough.  ``"edge"``: only
+            in the frame where the flag turns on (a grasp that misses stays empty until the flag
+            is switched off and on again).
         grasp_radius: Grasp distance from the picker centre in metres (SoftGym cloth:
             picker_threshold + picker_radius + particle_radius = 0.06125).
         rigid_weight_kinematic: Shape-matching weight of a grasped/pinned rigid-box particle
@@ -126,6 +132,7 @@ class SimParams:
     max_speed: float = 10.0
     picker_radius: float = 0.05
     grasp_mode: str = "closest"
+    grasp_trigger: str = "level"
     grasp_radius: float = 0.06125
     rigid_weight_kinematic: float = 1000.0
     particle_static_friction: float = 0.5
@@ -186,6 +193,8 @@ class SimParams:
             raise ValueError("SimParams.bend_reference_spacing must be > 0 or None")
         if _finite("bend_spacing_exponent") < 0.0:
             raise ValueError("SimParams.bend_spacing_exponent must be >= 0")
+        if self.grasp_trigger not in GRASP_TRIGGERS:
+            raise ValueError(f"SimParams.grasp_trigger must be one of {GRASP_TRIGGERS}, got {self.grasp_trigger!r}")
         if self.grasp_mode not in GRASP_MODES:
             raise ValueError(f"SimParams.grasp_mode must be one of {GRASP_MODES}, got {self.grasp_mode!r}")
 
