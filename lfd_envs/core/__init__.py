@@ -1,10 +1,12 @@
 """Shared env machinery: the env contract, variants, input checking."""
 
 from lfd_envs.core.base_env import OBS_MODES, LfdEnv
-from lfd_envs.core.errors import check_array, check_choice, check_image_size, check_int_range, strict_kwargs
+from lfd_envs.core.errors import (as_real_array, check_array, check_bool, check_choice, check_float, check_image_size,
+                                  check_int_range, check_str, strict_kwargs)
 from lfd_envs.core.variants import SPLITS, VariantSplit
 
 __all__ = [
     "LfdEnv", "OBS_MODES", "VariantSplit", "SPLITS",
-    "check_array", "check_choice", "check_image_size", "check_int_range", "strict_kwargs",
+    "as_real_array", "check_array", "check_bool", "check_choice", "check_float", "check_image_size",
+    "check_int_range", "check_str", "strict_kwargs",
 ]

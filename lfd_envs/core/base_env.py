@@ -15,12 +15,26 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from lfd_envs.core.errors import check_choice, check_image_size, strict_kwargs
+from lfd_envs.core.errors import as_real_array, check_choice, check_image_size, check_int_range, strict_kwargs
 from lfd_envs.core.state import check_episode, check_state_layout, episode_arrays
 from lfd_envs.core.variants import VariantSplit
 
 OBS_MODES = ("state", "image", "state+image")
 RESET_OPTIONS = ("split", "variant")
+#: render modes of every lfd env. ``"human"`` is listed only so that ``gymnasium.make`` passes it
+#: on and the env can explain that it has no window (see :func:`check_render_mode`).
+RENDER_MODES = ["rgb_array", "human"]
+
+
+def check_render_mode(render_mode: Any) -> str | None:
+    """``render_mode`` if it is None or ``"rgb_array"``; a clear ``ValueError`` otherwise."""
+    if render_mode == "human":
+        raise ValueError("render_mode='human' is not supported: lfd envs render headless and open no window. "
+                         "Use render_mode='rgb_array' and show the frames of env.render() yourself (or wrap the "
+                         "env in gymnasium.wrappers.HumanRendering, which needs pygame and a display)")
+    if render_mode is not None:
+        check_choice("render_mode", render_mode, ("rgb_array",))
+    return render_mode
 
 
 def check_reset_options(options: dict[str, Any] | None) -> dict[str, Any]:
@@ -69,13 +83,13 @@ class LfdEnv(gym.Env):
           train ids come before eval ids) and ``is_success`` where the task defines success.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["rgb_array"], "render_fps": 10}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": RENDER_MODES, "render_fps": 10}
     task_name: ClassVar[str] = "LfdEnv"
     #: observation modes this task supports (particle tasks add "particles")
     supported_obs_modes: ClassVar[tuple[str, ...]] = OBS_MODES
     #: whether the episode terminates when the task is solved
     terminate_on_success: ClassVar[bool] = False
-    #: size of frames returned by ``render()``
+    #: default ``(height, width)`` of frames returned by ``render()`` (the ``render_size`` argument)
     render_size: tuple[int, int] = (256, 256)
 
     def __init_subclass__(cls, **kwargs: Any) -> None:
@@ -92,18 +106,21 @@ class LfdEnv(gym.Env):
         image_size: int | tuple[int, int],
         render_mode: str | None,
         horizon: int,
+        render_size: int | tuple[int, int] | None = None,
         num_train_variants: int = 800,
         num_eval_variants: int = 200,
     ) -> None:
-        """Store and validate the arguments every env shares. Call first in ``__init__``."""
+        """Store and validate the arguments every env shares. Call first in ``__init__``.
+
+        ``render_size`` (an int or ``(height, width)``, like ``image_size``) sets the frames of
+        ``render()``; None keeps the class default.
+        """
         self.obs_mode = check_choice("obs_mode", obs_mode, self.supported_obs_modes)
         self.image_size = check_image_size(image_size)
-        if render_mode is not None:
-            check_choice("render_mode", render_mode, self.metadata["render_modes"])
-        self.render_mode = render_mode
-        if int(horizon) < 1:
-            raise ValueError(f"horizon must be >= 1, got {horizon}")
-        self.horizon = int(horizon)
+        self.render_mode = check_render_mode(render_mode)
+        if render_size is not None:
+            self.render_size = check_image_size(render_size, "render_size")
+        self.horizon = check_int_range("horizon", horizon, 1)
         self.variants = VariantSplit(self.task_name, int(num_train_variants), int(num_eval_variants))
         self._variant_split = "train"
         self._variant_index = -1
@@ -173,15 +190,22 @@ class LfdEnv(gym.Env):
         return float((performance - self._p0) / denom)
 
     # ------------------------------------------------------------------ gymnasium API
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+    def _check_reset(self, options: dict[str, Any] | None) -> tuple[str, int | None]:
+        """``(split, variant or None)`` of valid ``reset`` options; ``ValueError`` otherwise."""
         options = check_reset_options(options)
         split = options.get("split", "train")
-        n = self.variants.size(split)  # validates split
-        super().reset(seed=seed)
+        self.variants.size(split)  # validates split
         k = options.get("variant")
+        if k is not None:
+            self.variants.global_id(split, k)  # validates k
+        return split, k
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        split, k = self._check_reset(options)  # before seeding: a failed reset changes nothing
+        super().reset(seed=seed)
         if k is None:
-            k = int(self.np_random.integers(n))
-        rng = self.variants.rng(split, k)  # validates k
+            k = int(self.np_random.integers(self.variants.size(split)))
+        rng = self.variants.rng(split, k)
         self._variant_split, self._variant_index = split, int(k)
         self._setup_variant(rng)
         self._step_count = 0
@@ -212,10 +236,7 @@ class LfdEnv(gym.Env):
         """Check shape and finiteness (``ValueError`` otherwise) and clip to the bounds."""
         space = self.action_space
         assert isinstance(space, spaces.Box), "override validate_action for non-Box action spaces"
-        try:
-            arr = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"action must be a numeric array of shape {space.shape}, got {action!r}") from None
+        arr = as_real_array("action", action, space.shape)
         if arr.shape != space.shape:
             if arr.size == int(np.prod(space.shape)) and arr.ndim <= 1 and len(space.shape) == 1:
                 arr = arr.reshape(space.shape)

@@ -27,17 +27,56 @@ def check_int_range(name: str, value: Any, low: int, high: int | None = None) ->
     return int(value)
 
 
-def check_image_size(value: Any) -> tuple[int, int]:
-    """Normalise ``image_size`` (int or ``(height, width)``) to ``(height, width)``."""
-    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+def check_bool(name: str, value: Any) -> bool:
+    """Return ``value`` as bool if it is a bool (``numpy.bool_`` too), else raise ``ValueError``."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name} must be a bool (True or False), got {value!r}")
+    return bool(value)
+
+
+def check_float(name: str, value: Any, low: float | None = None, high: float | None = None) -> float:
+    """Return ``value`` as float if it is a finite real number in ``[low, high]`` (``None`` = open),
+    else raise ``ValueError`` (bools and strings are rejected)."""
+    real = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+    if not real or not np.isfinite(value) or (low is not None and value < low) or (high is not None and value > high):
+        bound = "" if low is None and high is None else f" in [{low}, {high}]"
+        raise ValueError(f"{name} must be a finite number{bound}, got {value!r}")
+    return float(value)
+
+
+def check_str(name: str, value: Any) -> str:
+    """Return ``value`` if it is a str, else raise ``ValueError``."""
+    if not isinstance(value, str):
+        raise ValueError(f"{name} must be a str, got {value!r}")
+    return value
+
+
+def check_image_size(value: Any, name: str = "image_size") -> tuple[int, int]:
+    """Normalise an image size (an int or ``(height, width)`` ints) to ``(height, width)``."""
+    def is_int(v: Any) -> bool:
+        return isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_))
+
+    if is_int(value):
         value = (int(value), int(value))
-    try:
-        h, w = (int(v) for v in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"image_size must be an int or (height, width), got {value!r}") from None
+    if isinstance(value, (str, bytes)) or not isinstance(value, (tuple, list, np.ndarray)) or len(value) != 2 \
+            or not all(is_int(v) for v in value):
+        raise ValueError(f"{name} must be an int or (height, width) ints, got {value!r}")
+    h, w = (int(v) for v in value)
     if not (1 <= h <= 2048 and 1 <= w <= 2048):
-        raise ValueError(f"image_size must be within 1..2048 pixels per side, got {value!r}")
+        raise ValueError(f"{name} must be within 1..2048 pixels per side, got {value!r}")
     return h, w
+
+
+def as_real_array(name: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """``value`` as a float64 array if it is real numeric data (no strings, complex or objects),
+    else ``ValueError`` naming ``name`` and the expected ``shape``."""
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError):
+        arr = None
+    if arr is None or arr.dtype.kind not in "biuf":
+        raise ValueError(f"{name} must be a real numeric array of shape {shape}, got {value!r}")
+    return arr.astype(np.float64)
 
 
 def check_array(name: str, value: Any, shape: tuple[int, ...], dtype: Any = np.float32) -> np.ndarray:

@@ -43,7 +43,7 @@ class VariantSplit:
     def global_id(self, split: str, k: int) -> int:
         """Global variant id of variant ``k`` of ``split`` (disjoint ranges per split)."""
         n = self.size(split)
-        if not isinstance(k, (int, np.integer)) or not 0 <= int(k) < n:
+        if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer)) or not 0 <= int(k) < n:
             raise ValueError(f"variant must be an int in [0, {n}) for split {split!r}, got {k!r}")
         return int(k) if split == "train" else self.num_train + int(k)
 

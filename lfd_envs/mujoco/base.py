@@ -28,7 +28,7 @@ A task subclasses :class:`MujocoEnv` (and usually
         def _is_success(self): ...
         def _performance(self): ...
 
-Control (SPEC §5, MoPA-RL): the action's first ``d = len(arm_joint_names)`` entries are
+Control (MoPA-RL): the action's first ``d = len(arm_joint_names)`` entries are
 joint-position deltas in [-1, 1] scaled by ``dq_step`` (rad); the servo set-point is
 ``clip(q_ref + a * dq_step, joint_limits)`` where ``q_ref`` is the measured arm position
 at the start of the step (or the previous waypoint while :meth:`execute_path` runs, i.e.
@@ -61,7 +61,7 @@ import numpy as np
 from gymnasium import spaces
 
 from lfd_envs.core.base_env import LfdEnv
-from lfd_envs.core.errors import check_choice
+from lfd_envs.core.errors import check_bool, check_choice
 from lfd_envs.core.state import check_range
 from lfd_envs.mujoco.rendering import make_renderer
 
@@ -169,7 +169,7 @@ class MujocoEnv(LfdEnv):
         self.init_arm_qpos = q0.copy()
         self.init_noise = check_choice("init_noise", init_noise, ("normal", "uniform"))
         self.init_noise_scale = float(init_noise_scale)
-        self.goal_conditioned = bool(goal_conditioned)
+        self.goal_conditioned = check_bool("goal_conditioned", goal_conditioned)
         if self.goal_conditioned:
             if self.goal_dim <= 0:
                 raise ValueError(f"{type(self).__name__} has no goal-conditioned variant")

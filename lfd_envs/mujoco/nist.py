@@ -1,4 +1,4 @@
-"""``NistBoardInsert-v0``: last-inch peg insertion on a NIST-style task board (SPEC §5, thesis ch. 6).
+"""``NistBoardInsert-v0``: last-inch peg insertion on a NIST-style task board (thesis ch. 6).
 
 The peg is already held by an end effector that moves in Cartesian space with compliance
 (position servos with force limits on three slide joints; see :mod:`lfd_envs.mujoco.nist_board`
@@ -58,7 +58,7 @@ import numpy as np
 from gymnasium import spaces
 
 from lfd_envs.core.base_env import LfdEnv
-from lfd_envs.core.errors import check_choice
+from lfd_envs.core.errors import as_real_array, check_bool, check_choice, check_float, check_int_range, check_str
 from lfd_envs.core.state import check_range
 from lfd_envs.mujoco import nist_board as board
 from lfd_envs.mujoco.rendering import configure_gl_backend, make_renderer
@@ -137,6 +137,7 @@ class NistBoardInsertEnv(LfdEnv):
         success_bonus: reward added on the successful step.
         antialias: 4× multisampling of camera images (about 3× slower with software OpenGL).
         render_mode: ``"rgb_array"`` (workspace camera at ``render_size``) or ``None``.
+        render_size: ``(height, width)`` (or an int) of ``render()`` frames (default 256×320).
     """
 
     task_name: ClassVar[str] = "NistBoardInsert"
@@ -158,18 +159,17 @@ class NistBoardInsertEnv(LfdEnv):
         success_bonus: float = 1.0,
         antialias: bool = False,
         render_mode: str | None = None,
+        render_size: int | tuple[int, int] | None = None,
     ) -> None:
-        self._init_contract(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon)
+        self._init_contract(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
+                            render_size=render_size)
         self.fit = check_choice("fit", fit, ("loose", "tight"))
         self.action_mode = check_choice("action_mode", action_mode, ("continuous", "tokens"))
         self.cameras = self._check_cameras(cameras)
-        if int(action_repeat) < 1:
-            raise ValueError(f"action_repeat must be >= 1, got {action_repeat}")
-        self.action_repeat = int(action_repeat)
-        if not ACTION_BIN <= float(max_delta) <= MAX_TARGET_ERROR:
-            raise ValueError(f"max_delta must be in [{ACTION_BIN}, {MAX_TARGET_ERROR}] m, got {max_delta}")
-        self.max_delta = float(max_delta)
-        self.success_bonus = float(success_bonus)
+        self.action_repeat = check_int_range("action_repeat", action_repeat, 1)
+        self.max_delta = check_float("max_delta", max_delta, ACTION_BIN, MAX_TARGET_ERROR)
+        self.success_bonus = check_float("success_bonus", success_bonus)
+        antialias = check_bool("antialias", antialias)
         self.tasks = self._check_tasks(instruction)
         self._task_list = tuple(parse_task(n, self.fit) for n in all_tasks(self.fit))
         self.num_bins = 2 * int(round(self.max_delta / ACTION_BIN)) + 1
@@ -196,8 +196,12 @@ class NistBoardInsertEnv(LfdEnv):
     # ------------------------------------------------------------------ argument checks
     @staticmethod
     def _check_cameras(cameras: Sequence[str]) -> tuple[str, ...]:
-        cams = (cameras,) if isinstance(cameras, str) else tuple(cameras)
-        if not cams or len(set(cams)) != len(cams) or any(c not in CAMERAS for c in cams):
+        try:
+            cams = (cameras,) if isinstance(cameras, str) else tuple(cameras)
+        except TypeError:
+            cams = ()
+        if not cams or not all(isinstance(c, str) for c in cams) or len(set(cams)) != len(cams) \
+                or any(c not in CAMERAS for c in cams):
             raise ValueError(f"cameras must be a non-empty subset of {CAMERAS}, got {cameras!r}")
         return cams
 
@@ -206,8 +210,10 @@ class NistBoardInsertEnv(LfdEnv):
             names: Sequence[str] = TRAIN_TASKS
         elif isinstance(instruction, str):
             names = all_tasks(self.fit) if instruction == "all" else (instruction,)
+        elif isinstance(instruction, (list, tuple)):
+            names = tuple(check_str("instruction", n) for n in instruction)
         else:
-            names = tuple(instruction)
+            raise ValueError(f"instruction must be a str, a list of str, 'all' or None, got {instruction!r}")
         if not names:
             raise ValueError("instruction must name at least one task")
         return tuple(parse_task(n, self.fit) for n in names)
@@ -286,10 +292,13 @@ class NistBoardInsertEnv(LfdEnv):
 
     # ------------------------------------------------------------------ episode
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        """Gymnasium reset; ``options`` may also hold ``"instruction"`` (the task of this episode)."""
+        """Gymnasium reset; ``options`` may also hold ``"instruction"`` (the task of this episode).
+        Every option is checked before anything (the seed included) changes."""
         options = dict(options or {})
         forced = options.pop("instruction", None)
-        self._forced_task = None if forced is None else parse_task(forced, self.fit)
+        task = None if forced is None else parse_task(check_str("options['instruction']", forced), self.fit)
+        self._check_reset(options)
+        self._forced_task = task
         return super().reset(seed=seed, options=options)
 
     def _setup_variant(self, rng: np.random.Generator) -> None:
@@ -339,10 +348,7 @@ class NistBoardInsertEnv(LfdEnv):
         if self.action_mode == "continuous":
             return super().validate_action(action)
         shape = (3,)
-        try:
-            arr = np.asarray(action, dtype=np.float64).reshape(-1)
-        except (TypeError, ValueError):
-            raise ValueError(f"action must be 3 integer tokens of shape {shape}, got {action!r}") from None
+        arr = as_real_array("action (integer tokens)", action, shape).reshape(-1)
         if arr.shape != shape:
             raise ValueError(f"action must have shape {shape} (tokens), got shape {np.shape(action)}")
         if not np.all(np.isfinite(arr)) or np.any(arr != np.round(arr)):

@@ -1,6 +1,6 @@
 """Push2DObstacle-v0: a planar 4-link arm pushes a box to a goal among 7 obstacles (MoPA-RL "PusherObstacle").
 
-Scene (MoPA-RL ``pusher_obstacle.xml``, SPEC §5): the arm's base is at the origin; four links
+Scene (MoPA-RL ``pusher_obstacle.xml``): the arm's base is at the origin; four links
 of 0.1 m (capsules, radius 0.01) rotate about z; ``joint0`` is unlimited (bounds ±2π for
 planning and set-points), joints 1-3 are limited to ±3 rad. A U-shaped gripper (three
 capsules) sits 0.11 m beyond the last joint, opening along the last link; the ``fingertip``
@@ -131,6 +131,7 @@ class Push2DObstacleEnv(PlanningMixin, MujocoEnv):
         render_mode: ``"rgb_array"`` or None.
         horizon: low-level steps per episode (400).
         goal_conditioned: GoalEnv Dict observations for HER (``obs_mode="state"`` only).
+        render_size: ``(height, width)`` (or an int) of ``render()`` frames (default 256×256).
     """
 
     task_name = "Push2DObstacle"
@@ -139,8 +140,10 @@ class Push2DObstacleEnv(PlanningMixin, MujocoEnv):
     ignored_contact_pairs: ClassVar[list[tuple[str, str]]] = []
 
     def __init__(self, obs_mode: str = "state", image_size: int | tuple[int, int] = 84,
-                 render_mode: str | None = None, horizon: int = 400, goal_conditioned: bool = False) -> None:
-        self._init_contract(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon)
+                 render_mode: str | None = None, horizon: int = 400, goal_conditioned: bool = False,
+                 render_size: int | tuple[int, int] | None = None) -> None:
+        self._init_contract(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
+                            render_size=render_size)
         self._init_mujoco(_scene_xml(), arm_joint_names=ARM_JOINTS, dq_step=0.1, frame_skip=20,
                           init_arm_qpos=np.zeros(4), init_noise="uniform", init_noise_scale=0.02,
                           goal_conditioned=goal_conditioned)

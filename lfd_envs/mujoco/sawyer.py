@@ -1,4 +1,4 @@
-"""Shared machinery of the Sawyer obstructed-manipulation tasks (MoPA-RL scenes, SPEC §5).
+"""Shared machinery of the Sawyer obstructed-manipulation tasks (MoPA-RL scenes).
 
 :class:`SawyerObstacleEnv` is the common base of ``SawyerPushObstacle-v0``,
 ``SawyerLiftObstacle-v0`` and ``SawyerAssemblyObstacle-v0``. The robot (robosuite's Sawyer arm,
@@ -68,6 +68,7 @@ class SawyerObstacleEnv(PlanningMixin, MujocoEnv):
         render_mode: ``"rgb_array"`` or None.
         horizon: low-level steps per episode (250).
         goal_conditioned: GoalEnv Dict observations for HER (``obs_mode="state"`` only).
+        render_size: ``(height, width)`` (or an int) of ``render()`` frames (default 256×256).
         robot_visual: ``"primitive"`` (robot drawn with its collision shapes, fast) or ``"mesh"``.
     """
 
@@ -84,9 +85,9 @@ class SawyerObstacleEnv(PlanningMixin, MujocoEnv):
 
     def __init__(self, obs_mode: str = "state", image_size: int | tuple[int, int] = 84,
                  render_mode: str | None = None, horizon: int = HORIZON, goal_conditioned: bool = False,
-                 robot_visual: str = "primitive") -> None:
+                 robot_visual: str = "primitive", render_size: int | tuple[int, int] | None = None) -> None:
         self._init_sawyer(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
-                          goal_conditioned=goal_conditioned, robot_visual=robot_visual)
+                          goal_conditioned=goal_conditioned, robot_visual=robot_visual, render_size=render_size)
         self._init_task()
         self._finish_init()
 
@@ -94,9 +95,10 @@ class SawyerObstacleEnv(PlanningMixin, MujocoEnv):
         """Task-specific setup once the model is loaded (ids of the task's bodies, sites ...)."""
 
     def _init_sawyer(self, *, obs_mode: str, image_size: Any, render_mode: str | None, horizon: int,
-                     goal_conditioned: bool, robot_visual: str = "primitive") -> None:
+                     goal_conditioned: bool, robot_visual: str = "primitive", render_size: Any = None) -> None:
         """Everything shared by the Sawyer tasks' ``__init__`` (call first)."""
-        self._init_contract(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon)
+        self._init_contract(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
+                            render_size=render_size)
         self.robot_visual = check_choice("robot_visual", robot_visual, ROBOT_VISUALS)
         self._scene_option = mujoco.MjvOption()
         if self.robot_visual == "primitive":  # collision primitives instead of ~280k mesh triangles

@@ -147,9 +147,10 @@ class ClothFoldDiagonalEnv(ParticleEnv):
 
     def __init__(self, num_pickers: int | None = None, action_mode: str = "delta", obs_mode: str | None = None,
                  image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
-                 render_mode: str | None = None, horizon: int | None = None, pinned: bool = False) -> None:
+                 render_mode: str | None = None, horizon: int | None = None, pinned: bool = False,
+                 render_size: int | tuple[int, int] | None = None) -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution, pinned=pinned), action_mode, obs_mode,
-                    image_size, device, render_mode, horizon)
+                    image_size, device, render_mode, horizon, render_size)
 
 
 class ClothFoldDiagonalVectorEnv(ParticleVectorEnv):
@@ -160,6 +161,7 @@ class ClothFoldDiagonalVectorEnv(ParticleVectorEnv):
     def __init__(self, num_envs: int = 1, num_pickers: int | None = None, action_mode: str = "delta",
                  obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
-                 horizon: int | None = None, pinned: bool = False) -> None:
+                 horizon: int | None = None, pinned: bool = False,
+                 render_size: int | tuple[int, int] | None = None) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution, pinned=pinned), action_mode,
-                    obs_mode, image_size, device, render_mode, horizon)
+                    obs_mode, image_size, device, render_mode, horizon, render_size)

@@ -38,8 +38,9 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 from gymnasium.vector.utils import batch_space
 
-from lfd_envs.core.base_env import OBS_MODES, LfdEnv, check_reset_options, observation_space
-from lfd_envs.core.errors import check_choice, check_image_size, check_int_range, strict_kwargs
+from lfd_envs.core.base_env import (OBS_MODES, RENDER_MODES, LfdEnv, check_render_mode, check_reset_options,
+                                   observation_space)
+from lfd_envs.core.errors import as_real_array, check_choice, check_image_size, check_int_range, strict_kwargs
 from lfd_envs.core.state import check_episode, check_state_layout, episode_arrays
 from lfd_envs.core.variants import VariantSplit
 from lfd_envs.tasks.particle_batch import ParticleBatch
@@ -57,6 +58,8 @@ POSITION_BOUND = 5.0
 def _check_device(device: Any) -> str:
     import warp as wp
 
+    if not isinstance(device, str):
+        raise ValueError(f"device must be a Warp device name such as 'cpu' or 'cuda:0', got {device!r}")
     try:
         wp.get_device(device)
     except Exception as exc:  # warp raises different types per version
@@ -93,19 +96,21 @@ class ParticleEnv(_SpacesMixin, LfdEnv):
 
     def __init__(self, num_pickers: int | None = None, action_mode: str = "delta", obs_mode: str | None = None,
                  image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
-                 render_mode: str | None = None, horizon: int | None = None) -> None:
+                 render_mode: str | None = None, horizon: int | None = None,
+                 render_size: int | tuple[int, int] | None = None) -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode, image_size,
-                    device, render_mode, horizon)
+                    device, render_mode, horizon, render_size)
 
     def _setup(self, task_options: dict[str, Any], action_mode: str, obs_mode: str | None,
-               image_size: Any, device: str, render_mode: str | None, horizon: int | None) -> None:
+               image_size: Any, device: str, render_mode: str | None, horizon: int | None,
+               render_size: Any = None) -> None:
         check_choice("action_mode", action_mode, ACTION_MODES)
         device = _check_device(device)
         task = self.task_class(**{**self.task_options, **task_options})
         self.task_name = task.name
         self._init_contract(obs_mode=obs_mode or task.default_obs_mode,
                             image_size=image_size, render_mode=render_mode,
-                            horizon=_horizon(task, action_mode, horizon))
+                            horizon=_horizon(task, action_mode, horizon), render_size=render_size)
         self.task = task
         self.action_mode = action_mode
         self.num_pickers = task.num_pickers
@@ -192,7 +197,7 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
     task_class: ClassVar[type[ParticleTask]]
     task_options: ClassVar[dict[str, Any]] = {}
     metadata: ClassVar[dict[str, Any]] = {
-        "render_modes": ["rgb_array"], "render_fps": 10,
+        "render_modes": RENDER_MODES, "render_fps": 10,
         "autoreset_mode": gym.vector.AutoresetMode.SAME_STEP,
     }
     render_size: tuple[int, int] = (256, 256)
@@ -207,12 +212,13 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
     def __init__(self, num_envs: int = 1, num_pickers: int | None = None, action_mode: str = "delta",
                  obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
-                 horizon: int | None = None) -> None:
+                 horizon: int | None = None, render_size: int | tuple[int, int] | None = None) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode,
-                    image_size, device, render_mode, horizon)
+                    image_size, device, render_mode, horizon, render_size)
 
     def _setup(self, num_envs: int, task_options: dict[str, Any], action_mode: str, obs_mode: str | None,
-               image_size: Any, device: str, render_mode: str | None, horizon: int | None) -> None:
+               image_size: Any, device: str, render_mode: str | None, horizon: int | None,
+               render_size: Any = None) -> None:
         num_envs = check_int_range("num_envs", num_envs, 1)
         check_choice("action_mode", action_mode, ACTION_MODES)
         device = _check_device(device)
@@ -223,9 +229,9 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
         self.obs_mode = check_choice("obs_mode", obs_mode or task.default_obs_mode,
                                      PARTICLE_OBS_MODES)
         self.image_size = check_image_size(image_size)
-        if render_mode is not None:
-            check_choice("render_mode", render_mode, self.metadata["render_modes"])
-        self.render_mode = render_mode
+        self.render_mode = check_render_mode(render_mode)
+        if render_size is not None:
+            self.render_size = check_image_size(render_size, "render_size")
         self.horizon = _horizon(task, action_mode, horizon)
         self.device = device
         self.variants = VariantSplit(task.name)
@@ -245,11 +251,6 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
     def reset(self, *, seed: int | Sequence[int] | None = None, options: dict[str, Any] | None = None):
         options = check_reset_options(options)
         n = self.num_envs
-        if seed is not None:
-            seeds = [int(seed) + i for i in range(n)] if np.isscalar(seed) else list(seed)
-            if len(seeds) != n:
-                raise ValueError(f"seed must be an int or a list of {n} ints, got {seed!r}")
-            self._rngs = [seeding.np_random(s)[0] for s in seeds]
         split = options.get("split", "train")
         size = self.variants.size(split)
         variant = options.get("variant")
@@ -259,6 +260,8 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
         for i, k in enumerate(ks):
             if k is not None:
                 self.variants.global_id(split, k)  # validate all before changing anything
+        if seed is not None:
+            self._rngs = [seeding.np_random(s)[0] for s in self._seeds(seed)]
         for i, k in enumerate(ks):
             self._reset_world(i, split, None if k is None else int(k), size)
         return self._observations(), self._infos(self.batch.performance())
@@ -334,6 +337,15 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
         self._prev[index] = episode.prev_performance
 
     # ------------------------------------------------------------------ internals
+    def _seeds(self, seed: int | Sequence[int]) -> list[int]:
+        """One seed per world (``seed + i`` for an int); ``ValueError`` before anything is seeded."""
+        n = self.num_envs
+        seeds = [seed + i for i in range(n)] if np.isscalar(seed) else list(seed)
+        if len(seeds) != n or not all(isinstance(s, (int, np.integer)) and not isinstance(s, (bool, np.bool_))
+                                      and s >= 0 for s in seeds):
+            raise ValueError(f"seed must be a non-negative int or a list of {n} such ints, got {seed!r}")
+        return [int(s) for s in seeds]
+
     def _reset_world(self, i: int, split: str, k: int | None, size: int | None) -> None:
         if k is None:
             k = int(self._rngs[i].integers(size if size is not None else self.variants.size(split)))
@@ -345,10 +357,7 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
 
     def _validate(self, actions: Any) -> np.ndarray:
         shape = (self.num_envs,) + self.single_action_space.shape
-        try:
-            arr = np.asarray(actions, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"actions must be a numeric array of shape {shape}, got {actions!r}") from None
+        arr = as_real_array("actions", actions, shape)
         if arr.shape != shape:
             raise ValueError(f"actions must have shape {shape}, got shape {arr.shape}")
         if not np.all(np.isfinite(arr)):
@@ -397,9 +406,10 @@ class PickPlaceParticleEnv(ParticleEnv):
 
     def __init__(self, num_pickers: int | None = None, action_mode: str = "pick_place", obs_mode: str | None = None,
                  image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
-                 render_mode: str | None = None, horizon: int | None = None) -> None:
+                 render_mode: str | None = None, horizon: int | None = None,
+                 render_size: int | tuple[int, int] | None = None) -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode, image_size,
-                    device, render_mode, horizon)
+                    device, render_mode, horizon, render_size)
 
 
 class PickPlaceParticleVectorEnv(ParticleVectorEnv):
@@ -408,6 +418,6 @@ class PickPlaceParticleVectorEnv(ParticleVectorEnv):
     def __init__(self, num_envs: int = 1, num_pickers: int | None = None, action_mode: str = "pick_place",
                  obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
-                 horizon: int | None = None) -> None:
+                 horizon: int | None = None, render_size: int | tuple[int, int] | None = None) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode,
-                    image_size, device, render_mode, horizon)
+                    image_size, device, render_mode, horizon, render_size)

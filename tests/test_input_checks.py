@@ -1,0 +1,113 @@
+"""Constructor arguments, reset options and actions are checked with clear errors (MuJoCo, NIST, particle)."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import lfd_envs  # noqa: F401
+
+PARTICLE = dict(resolution=8, obs_mode="state")
+
+
+@pytest.mark.parametrize("env_id,kwargs,match", [
+    ("Push2DObstacle-v0", dict(image_size="32"), "image_size"),
+    ("Push2DObstacle-v0", dict(image_size=("32", "32")), "image_size"),
+    ("Push2DObstacle-v0", dict(image_size=32.0), "image_size"),
+    ("Push2DObstacle-v0", dict(horizon=2.5), "horizon"),
+    ("Push2DObstacle-v0", dict(horizon=True), "horizon"),
+    ("Push2DObstacle-v0", dict(goal_conditioned="no"), "goal_conditioned"),
+    ("Push2DObstacle-v0", dict(render_size="32"), "render_size"),
+    ("Push2DObstacle-v0", dict(render_mode="human"), "rgb_array"),
+    ("NistBoardInsert-v0", dict(horizon=2.5), "horizon"),
+    ("NistBoardInsert-v0", dict(success_bonus=float("nan")), "success_bonus"),
+    ("NistBoardInsert-v0", dict(success_bonus=float("inf")), "success_bonus"),
+    ("NistBoardInsert-v0", dict(instruction=5), "instruction"),
+    ("NistBoardInsert-v0", dict(instruction=[5]), "instruction"),
+    ("NistBoardInsert-v0", dict(action_repeat=True), "action_repeat"),
+    ("NistBoardInsert-v0", dict(action_repeat=1.5), "action_repeat"),
+    ("NistBoardInsert-v0", dict(max_delta="0.003"), "max_delta"),
+    ("NistBoardInsert-v0", dict(antialias="no"), "antialias"),
+    ("NistBoardInsert-v0", dict(image_size="32"), "image_size"),
+    ("NistBoardInsert-v0", dict(render_mode="human"), "rgb_array"),
+    ("ClothFold-v0", dict(PARTICLE, image_size="32"), "image_size"),
+    ("ClothFold-v0", dict(PARTICLE, device=None), "device"),
+    ("ClothFold-v0", dict(PARTICLE, render_mode="human"), "rgb_array"),
+])
+def test_bad_constructor_arguments_raise_clear_errors(env_id, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        gym.make(env_id, **kwargs)
+
+
+def test_vector_env_rejects_human_render_mode():
+    with pytest.raises(ValueError, match="rgb_array"):
+        gym.make_vec("ClothFold-v0", num_envs=2, vectorization_mode="vector_entry_point", render_mode="human",
+                     **PARTICLE)
+
+
+def rng_state(env):
+    return env.unwrapped.np_random.bit_generator.state
+
+
+@pytest.mark.parametrize("env_id,kwargs,bad_options", [
+    ("Push2DObstacle-v0", {}, {"variant": 10 ** 6}),
+    ("Push2DObstacle-v0", {}, {"variant": True}),
+    ("Push2DObstacle-v0", {}, {"split": "test"}),
+    ("NistBoardInsert-v0", dict(obs_mode="state"), {"variant": 10 ** 6}),
+    ("NistBoardInsert-v0", dict(obs_mode="state"), {"variant": True, "instruction": "insert small peg in large hole"}),
+    ("NistBoardInsert-v0", dict(obs_mode="state"), {"instruction": 5}),
+    ("ClothFold-v0", PARTICLE, {"variant": True}),
+])
+def test_failed_reset_changes_nothing(env_id, kwargs, bad_options):
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=0)
+    before_rng, before_state = rng_state(env), env.unwrapped.get_state()
+    with pytest.raises(ValueError):
+        env.reset(seed=123, options=bad_options)
+    assert rng_state(env) == before_rng
+    after = env.unwrapped.get_state()
+    assert all(np.array_equal(before_state[k], after[k]) for k in before_state)
+
+
+def test_failed_vector_reset_does_not_reseed():
+    venv = gym.make_vec("ClothFold-v0", num_envs=2, vectorization_mode="vector_entry_point", **PARTICLE)
+    venv.reset(seed=0)
+    before = [r.bit_generator.state for r in venv.unwrapped._rngs]
+    with pytest.raises(ValueError):
+        venv.reset(seed=5, options={"variant": True})
+    with pytest.raises(ValueError, match="seed"):
+        venv.reset(seed=[1, "2"])
+    assert [r.bit_generator.state for r in venv.unwrapped._rngs] == before
+
+
+@pytest.mark.parametrize("env_id,kwargs", [
+    ("Push2DObstacle-v0", {}),
+    ("NistBoardInsert-v0", dict(obs_mode="state")),
+    ("NistBoardInsert-v0", dict(obs_mode="state", action_mode="tokens")),
+    ("ClothFold-v0", PARTICLE),
+])
+def test_non_real_actions_are_rejected(env_id, kwargs):
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=0)
+    n = env.action_space.shape[0]
+    for bad in (np.array(["0.5"] * n), ["1"] * n, np.full(n, 0.5 + 0.5j), np.array([object()] * n)):
+        with pytest.raises(ValueError, match="real numeric"):
+            env.step(bad)
+    env.step(env.action_space.sample())  # still usable
+
+
+def test_vector_env_rejects_complex_actions():
+    venv = gym.make_vec("ClothFold-v0", num_envs=2, vectorization_mode="vector_entry_point", **PARTICLE)
+    venv.reset(seed=0)
+    with pytest.raises(ValueError, match="real numeric"):
+        venv.step(np.full(venv.action_space.shape, 0.1j))
+
+
+@pytest.mark.parametrize("env_id,kwargs,size,shape", [
+    ("Push2DObstacle-v0", {}, (48, 64), (48, 64, 3)),
+    ("NistBoardInsert-v0", dict(obs_mode="state"), 40, (40, 40, 3)),
+    ("ClothFold-v0", PARTICLE, (24, 40), (24, 40, 3)),
+])
+def test_render_size_sets_rgb_array_frames(env_id, kwargs, size, shape):
+    env = gym.make(env_id, render_mode="rgb_array", render_size=size, **kwargs)
+    env.reset(seed=0)
+    assert env.render().shape == shape
