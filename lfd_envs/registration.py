@@ -12,25 +12,27 @@ import gymnasium as gym
 _P = "lfd_envs.tasks"
 _M = "lfd_envs.mujoco"
 
-#: env id -> (entry point, vector entry point or None, default kwargs)
-ENV_SPECS: dict[str, tuple[str, str | None, dict]] = {
-    "StraightenRope-v0": (f"{_P}.rope:StraightenRopeEnv", f"{_P}.rope:StraightenRopeVectorEnv", {}),
-    "ClothFold-v0": (f"{_P}.cloth_fold:ClothFoldEnv", f"{_P}.cloth_fold:ClothFoldVectorEnv", {}),
+#: env id -> (entry point, vector entry point or None, default kwargs, horizon of the default configuration)
+ENV_SPECS: dict[str, tuple[str, str | None, dict, int]] = {
+    "StraightenRope-v0": (f"{_P}.rope:StraightenRopeEnv", f"{_P}.rope:StraightenRopeVectorEnv", {}, 75),
+    "ClothFold-v0": (f"{_P}.cloth_fold:ClothFoldEnv", f"{_P}.cloth_fold:ClothFoldVectorEnv", {}, 100),
     "ClothFoldDiagonal-v0": (
-        f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalEnv", f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalVectorEnv", {}),
+        f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalEnv", f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalVectorEnv", {},
+        100),
     "ClothFoldDiagonalPinned-v0": (
         f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalEnv", f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalVectorEnv",
-        {"pinned": True}),
+        {"pinned": True}, 100),
     "ClothFoldDiagonalUnpinned-v0": (
         f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalEnv", f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalVectorEnv",
-        {"pinned": False}),
-    "DryCloth-v0": (f"{_P}.dry_cloth:DryClothEnv", f"{_P}.dry_cloth:DryClothVectorEnv", {}),
-    "ThreeBoxes-v0": (f"{_P}.three_boxes:ThreeBoxesEnv", f"{_P}.three_boxes:ThreeBoxesVectorEnv", {}),
-    "Push2DObstacle-v0": (f"{_M}.push2d:Push2DObstacleEnv", None, {}),
-    "SawyerPushObstacle-v0": (f"{_M}.sawyer_push:SawyerPushObstacleEnv", None, {}),
-    "SawyerLiftObstacle-v0": (f"{_M}.sawyer_lift:SawyerLiftObstacleEnv", None, {}),
-    "SawyerAssemblyObstacle-v0": (f"{_M}.sawyer_assembly:SawyerAssemblyObstacleEnv", None, {}),
-    "NistBoardInsert-v0": (f"{_M}.nist:NistBoardInsertEnv", None, {}),
+        {"pinned": False}, 100),
+    "DryCloth-v0": (f"{_P}.dry_cloth:DryClothEnv", f"{_P}.dry_cloth:DryClothVectorEnv", {}, 3),
+    "ThreeBoxes-v0": (f"{_P}.three_boxes:ThreeBoxesEnv", f"{_P}.three_boxes:ThreeBoxesVectorEnv", {}, 3),
+    "Push2DObstacle-v0": (f"{_M}.push2d:Push2DObstacleEnv", None, {}, 400),
+    "SawyerPushObstacle-v0": (f"{_M}.sawyer_push:SawyerPushObstacleEnv", None, {}, 250),
+    "SawyerLiftObstacle-v0": (f"{_M}.sawyer_lift:SawyerLiftObstacleEnv", None, {}, 250),
+    "SawyerAssemblyObstacle-v0": (f"{_M}.sawyer_assembly:SawyerAssemblyObstacleEnv", None, {}, 250),
+    # SB3-friendly instruction tokens by default (the class default is the Text observation)
+    "NistBoardInsert-v0": (f"{_M}.nist:NistBoardInsertEnv", None, {"instruction_encoding": "tokens"}, 100),
 }
 
 PARTICLE_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if v[0].startswith(_P))
@@ -38,11 +40,17 @@ MUJOCO_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if v[0].startswith(_M))
 
 
 def register_all() -> None:
-    """Register every id in :data:`ENV_SPECS` (idempotent)."""
-    for env_id, (entry, vec_entry, kwargs) in ENV_SPECS.items():
+    """Register every id in :data:`ENV_SPECS` (idempotent).
+
+    ``max_episode_steps`` is the default configuration's horizon; :class:`~lfd_envs.core.time_limit.MatchHorizon`
+    keeps ``gymnasium.make``'s ``TimeLimit`` at the horizon of the configuration actually made.
+    """
+    from lfd_envs.core.time_limit import MATCH_HORIZON
+
+    for env_id, (entry, vec_entry, kwargs, horizon) in ENV_SPECS.items():
         if env_id in gym.registry:
             continue
         # Our envs enforce the contract themselves (and pass check_env); Gymnasium's
         # passive checker would only add per-step overhead.
         gym.register(id=env_id, entry_point=entry, vector_entry_point=vec_entry, kwargs=dict(kwargs),
-                     disable_env_checker=True)
+                     disable_env_checker=True, max_episode_steps=horizon, additional_wrappers=(MATCH_HORIZON,))

@@ -92,9 +92,9 @@ def test_spaces_tokens_and_contract():
     env = gym.make("lfd_envs:NistBoardInsert-v0", action_mode="tokens", obs_mode="state+image",
                    image_size=(24, 32), action_repeat=2)
     obs, info = env.reset(seed=1)
-    assert set(obs) == {"workspace", "wrist", "instruction", "state"}
+    assert set(obs) == {"workspace", "wrist", "instruction_tokens", "state"}  # gym.make's SB3-friendly default
     assert obs["workspace"].shape == (24, 32, 3) and obs["wrist"].dtype == np.uint8
-    assert obs["instruction"] in TRAIN_TASKS and env.observation_space.contains(obs)
+    assert env.unwrapped.instruction in TRAIN_TASKS and env.observation_space.contains(obs)
     assert env.action_space.nvec.tolist() == [21, 21, 21]
     assert {"performance", "normalized_performance", "variant", "is_success"} <= set(info)
     tip = env.unwrapped.tip_position

@@ -68,8 +68,8 @@ def test_instruction_features_are_order_sensitive():
 def test_learns_from_minari_dataset(tmp_path):
     from lfd_envs import datasets
 
-    path = datasets.collect("NistBoardInsert-v0", 2, tmp_path, env_kwargs={"image_size": (24, 32), "horizon": 60},
-                            progress=False)
+    kwargs = {"image_size": (24, 32), "horizon": 60, "instruction_encoding": "text"}  # NistBC reads text
+    path = datasets.collect("NistBoardInsert-v0", 2, tmp_path, env_kwargs=kwargs, progress=False)
     env = NistBoardInsertEnv(image_size=(24, 32))
     agent = NistBC(env, path, seed=0).learn(total_timesteps=2)
     assert np.isfinite(agent.last_loss)

@@ -45,20 +45,23 @@ Gravity compensation (``gravity_compensation``):
 
 Observations: ``obs_mode`` ``"state"`` (``_state_obs``), ``"image"`` (uint8 RGB H×W×3,
 **default 84×84 for MuJoCo envs**, from ``camera``), ``"state+image"`` (Dict). With
-``goal_conditioned=True`` (``obs_mode="state"`` only) the observation is the
-gymnasium-robotics ``GoalEnv`` Dict ``{"observation", "achieved_goal", "desired_goal"}``
-and :meth:`compute_reward` is vectorised for SB3's ``HerReplayBuffer``.
+``goal_conditioned=True`` (``obs_mode="state"`` only) the env is a ``gymnasium_robotics.core.GoalEnv``
+instance, the observation is the ``GoalEnv`` Dict ``{"observation", "achieved_goal",
+"desired_goal"}`` and ``compute_reward`` is vectorised for SB3's ``HerReplayBuffer``. Without it
+the env has no ``compute_reward`` at all (SB3's ``check_env`` would take it for a goal env).
 
 Episodes: terminated on success (MoPA-RL), truncated after ``horizon`` low-level steps.
 """
 
 from __future__ import annotations
 
+import inspect
 from typing import Any, ClassVar, Sequence
 
 import mujoco
 import numpy as np
 from gymnasium import spaces
+from gymnasium_robotics.core import GoalEnv
 
 from lfd_envs.core.base_env import LfdEnv
 from lfd_envs.core.errors import check_bool, check_choice
@@ -106,6 +109,14 @@ class MujocoEnv(LfdEnv):
     #: info keys (floats) that :meth:`_goal_reward` needs besides the goals. Avoid if possible:
     #: SB3's ``HerReplayBuffer`` passes empty infos unless ``copy_info_dict=True``
     reward_info_keys: ClassVar[tuple[str, ...]] = ()
+
+    def __new__(cls, *args: Any, **kwargs: Any) -> "MujocoEnv":
+        """Instances made with ``goal_conditioned=True`` are of a subclass that is also a
+        ``gymnasium_robotics.core.GoalEnv`` (:func:`goal_env_class`); the others have no
+        ``compute_reward`` (so tools do not take them for goal envs)."""
+        if cls.goal_dim > 0 and not issubclass(cls, GoalEnvMixin) and _wants_goal(cls, args, kwargs):
+            cls = goal_env_class(cls)
+        return super().__new__(cls)
 
     # ------------------------------------------------------------------ construction
     def _init_mujoco(
@@ -354,46 +365,6 @@ class MujocoEnv(LfdEnv):
         """Vectorised success ``(n,)`` bool for goals ``(n, goal_dim)``."""
         raise NotImplementedError
 
-    def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> np.ndarray | float:
-        """GoalEnv reward for (batches of) goals; ``info`` is a dict or an array/list of dicts.
-
-        Equals the step reward for the goals and info of a real step, so SB3's
-        ``HerReplayBuffer`` can relabel goals. Returns a float for unbatched input, else an
-        array of shape ``achieved_goal.shape[:-1]``.
-        """
-        ag = np.asarray(achieved_goal, np.float64)
-        dg = np.asarray(desired_goal, np.float64)
-        batch = ag.shape[:-1]
-        n = int(np.prod(batch)) if batch else 1
-        extras = {k: self._info_values(info, k, n) for k in self.reward_info_keys}
-        r = self._goal_reward(ag.reshape(n, -1), dg.reshape(n, -1), extras)
-        return float(r[0]) if not batch else np.asarray(r, np.float32).reshape(batch)
-
-    @staticmethod
-    def _info_values(info: Any, key: str, n: int) -> np.ndarray:
-        try:
-            if isinstance(info, dict):
-                values = np.asarray(info[key], np.float64).reshape(-1)
-                return np.broadcast_to(values, (n,)) if values.size == 1 else values
-            return np.array([i[key] for i in np.asarray(info, dtype=object).reshape(-1)], np.float64)
-        except (KeyError, TypeError):
-            raise ValueError(
-                f"compute_reward needs info[{key!r}] (the step's info dict, or an array of them); with SB3's "
-                "HerReplayBuffer pass replay_buffer_kwargs={'copy_info_dict': True}") from None
-
-    def compute_terminated(self, achieved_goal: Any, desired_goal: Any, info: Any) -> np.ndarray | bool:
-        """GoalEnv termination: success (episodes end on success)."""
-        ag = np.asarray(achieved_goal, np.float64)
-        dg = np.asarray(desired_goal, np.float64)
-        batch = ag.shape[:-1]
-        done = self._goal_success(ag.reshape(-1, ag.shape[-1]), dg.reshape(-1, dg.shape[-1]))
-        return bool(done[0]) if not batch else np.asarray(done).reshape(batch)
-
-    def compute_truncated(self, achieved_goal: Any, desired_goal: Any, info: Any) -> np.ndarray | bool:
-        """GoalEnv truncation does not depend on goals (the horizon is counted by the env)."""
-        batch = np.asarray(achieved_goal).shape[:-1]
-        return False if not batch else np.zeros(batch, bool)
-
     # ------------------------------------------------------------------ observations
     def _observation(self) -> Any:
         if self.goal_conditioned:
@@ -453,4 +424,73 @@ class MujocoEnv(LfdEnv):
         """Restore what :meth:`_get_task_state` returned (keys without the ``task/`` prefix)."""
 
 
-__all__ = ["MujocoEnv", "CONTINUOUS_JOINT_RANGE", "GRAVITY_COMPENSATION_MODES"]
+def _wants_goal(cls: type, args: tuple, kwargs: dict) -> bool:
+    """Whether constructor arguments ask for ``goal_conditioned=True`` (bad arguments: False, so
+    that ``__init__`` reports them)."""
+    try:
+        bound = inspect.signature(cls.__init__).bind(None, *args, **kwargs)
+    except TypeError:
+        return False
+    return bound.arguments.get("goal_conditioned", False) is True or bound.arguments.get(
+        "goal_conditioned", False) is np.True_
+
+
+class GoalEnvMixin(GoalEnv):
+    """The ``GoalEnv`` side of a goal-conditioned :class:`MujocoEnv` (see :func:`goal_env_class`)."""
+
+    def compute_reward(self, achieved_goal: Any, desired_goal: Any, info: Any) -> np.ndarray | float:
+        """GoalEnv reward for (batches of) goals; ``info`` is a dict or an array/list of dicts.
+
+        Equals the step reward for the goals and info of a real step, so SB3's
+        ``HerReplayBuffer`` can relabel goals. Returns a float for unbatched input, else an
+        array of shape ``achieved_goal.shape[:-1]``.
+        """
+        ag = np.asarray(achieved_goal, np.float64)
+        dg = np.asarray(desired_goal, np.float64)
+        batch = ag.shape[:-1]
+        n = int(np.prod(batch)) if batch else 1
+        extras = {k: self._info_values(info, k, n) for k in self.reward_info_keys}
+        r = self._goal_reward(ag.reshape(n, -1), dg.reshape(n, -1), extras)
+        return float(r[0]) if not batch else np.asarray(r, np.float32).reshape(batch)
+
+    @staticmethod
+    def _info_values(info: Any, key: str, n: int) -> np.ndarray:
+        try:
+            if isinstance(info, dict):
+                values = np.asarray(info[key], np.float64).reshape(-1)
+                return np.broadcast_to(values, (n,)) if values.size == 1 else values
+            return np.array([i[key] for i in np.asarray(info, dtype=object).reshape(-1)], np.float64)
+        except (KeyError, TypeError):
+            raise ValueError(
+                f"compute_reward needs info[{key!r}] (the step's info dict, or an array of them); with SB3's "
+                "HerReplayBuffer pass replay_buffer_kwargs={'copy_info_dict': True}") from None
+
+    def compute_terminated(self, achieved_goal: Any, desired_goal: Any, info: Any) -> np.ndarray | bool:
+        """GoalEnv termination: success (episodes end on success)."""
+        ag = np.asarray(achieved_goal, np.float64)
+        dg = np.asarray(desired_goal, np.float64)
+        batch = ag.shape[:-1]
+        done = self._goal_success(ag.reshape(-1, ag.shape[-1]), dg.reshape(-1, dg.shape[-1]))
+        return bool(done[0]) if not batch else np.asarray(done).reshape(batch)
+
+    def compute_truncated(self, achieved_goal: Any, desired_goal: Any, info: Any) -> np.ndarray | bool:
+        """GoalEnv truncation does not depend on goals (the horizon is counted by the env)."""
+        batch = np.asarray(achieved_goal).shape[:-1]
+        return False if not batch else np.zeros(batch, bool)
+
+
+
+_GOAL_CLASSES: dict[type, type] = {}
+
+
+def goal_env_class(cls: type) -> type:
+    """The goal-conditioned subclass of a :class:`MujocoEnv` task class: the same name and
+    behaviour, plus :class:`GoalEnvMixin` (``compute_reward`` & co., a ``GoalEnv`` instance)."""
+    if cls not in _GOAL_CLASSES:
+        _GOAL_CLASSES[cls] = type(cls.__name__, (cls, GoalEnvMixin),
+                                  {"__module__": cls.__module__, "__qualname__": cls.__qualname__,
+                                   "__doc__": cls.__doc__})
+    return _GOAL_CLASSES[cls]
+
+
+__all__ = ["MujocoEnv", "GoalEnvMixin", "goal_env_class", "CONTINUOUS_JOINT_RANGE", "GRAVITY_COMPENSATION_MODES"]

@@ -17,7 +17,11 @@ per episode with ``reset(options={"instruction": "insert small peg in large hole
 Observations (``obs_mode``):
     * ``"image"`` (default): ``Dict`` with one uint8 RGB image per camera in ``cameras``
       (``"workspace"``: static, ``"wrist"``: moves with the end effector; ``image_size`` = (H, W),
-      default 128×160, 512×640 as in the thesis) and ``"instruction"`` (``gymnasium.spaces.Text``).
+      default 128×160, 512×640 as in the thesis) and the instruction: ``"instruction"``
+      (``gymnasium.spaces.Text``) with ``instruction_encoding="text"`` (the class default), or
+      ``"instruction_tokens"`` = (peg size, hole size) indices, ``MultiDiscrete([4, 4])``, with
+      ``instruction_encoding="tokens"`` (the default of ``gym.make("NistBoardInsert-v0")``: SB3
+      policies cannot read ``Text``; :func:`instruction_from_tokens` turns them back into text).
     * ``"state+image"``: the same plus ``"state"`` (the vector below).
     * ``"state"``: float32 vector of 14: peg-tip position (3), tip velocity (3), compliance
       deflection = commanded target − tip (3), centre of the target hole's top (3), peg and hole
@@ -76,6 +80,9 @@ SUCCESS_DEPTH_TOL = 0.001
 WORKSPACE_LOW = np.array([-0.12, -0.12, board.BOARD_BASE - 0.01])
 WORKSPACE_HIGH = np.array([0.12, 0.12, board.BOARD_TOP + 0.15])
 CAMERAS = ("workspace", "wrist")
+#: ``"text"``: ``obs["instruction"]`` is the instruction (``spaces.Text``); ``"tokens"``:
+#: ``obs["instruction_tokens"]`` = (peg size, hole size) indices (``MultiDiscrete([4, 4])``, SB3-friendly)
+INSTRUCTION_ENCODINGS = ("text", "tokens")
 INSTRUCTION_CHARSET = string.ascii_lowercase + " "
 _INSTRUCTION_RE = re.compile(r"^insert (\w+) peg in (\w+) hole$")
 
@@ -101,6 +108,25 @@ def parse_task(instruction: str, fit: str = "loose") -> NistTask:
         raise ValueError(f"{instruction!r}: the peg does not fit the hole with fit={fit!r}; "
                          f"valid tasks: {all_tasks(fit)}")
     return NistTask(f"insert {names[peg]} peg in {names[hole]} hole", peg, hole)
+
+
+def instruction_tokens(instruction: str) -> np.ndarray:
+    """``(peg, hole)`` size indices (into ``nist_board.SIZE_NAMES``) of an instruction, int64."""
+    match = _INSTRUCTION_RE.match(str(instruction).strip().lower())
+    names = board.SIZE_NAMES
+    if match is None or match.group(1) not in names or match.group(2) not in names:
+        raise ValueError(f"instruction must read 'insert <size> peg in <size> hole' with sizes {names}, "
+                         f"got {instruction!r}")
+    return np.array([names.index(match.group(1)), names.index(match.group(2))], dtype=np.int64)
+
+
+def instruction_from_tokens(tokens: Any) -> str:
+    """The instruction of ``(peg, hole)`` size indices (inverse of :func:`instruction_tokens`)."""
+    names = board.SIZE_NAMES
+    peg, hole = (int(t) for t in np.asarray(tokens).reshape(2))
+    if not (0 <= peg < len(names) and 0 <= hole < len(names)):
+        raise ValueError(f"instruction tokens must be two size indices in [0, {len(names)}), got {tokens!r}")
+    return f"insert {names[peg]} peg in {names[hole]} hole"
 
 
 def all_tasks(fit: str = "loose") -> tuple[str, ...]:
@@ -138,6 +164,9 @@ class NistBoardInsertEnv(LfdEnv):
         antialias: 4× multisampling of camera images (about 3× slower with software OpenGL).
         render_mode: ``"rgb_array"`` (workspace camera at ``render_size``) or ``None``.
         render_size: ``(height, width)`` (or an int) of ``render()`` frames (default 256×320).
+        instruction_encoding: ``"text"`` (``obs["instruction"]``, a ``spaces.Text``) or ``"tokens"``
+            (``obs["instruction_tokens"]``, see :data:`INSTRUCTION_ENCODINGS`; the default of
+            ``gym.make("NistBoardInsert-v0")``, since Stable-Baselines3 has no ``Text`` support).
     """
 
     task_name: ClassVar[str] = "NistBoardInsert"
@@ -160,6 +189,7 @@ class NistBoardInsertEnv(LfdEnv):
         antialias: bool = False,
         render_mode: str | None = None,
         render_size: int | tuple[int, int] | None = None,
+        instruction_encoding: str = "text",
     ) -> None:
         self._init_contract(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
                             render_size=render_size)
@@ -170,6 +200,7 @@ class NistBoardInsertEnv(LfdEnv):
         self.max_delta = check_float("max_delta", max_delta, ACTION_BIN, MAX_TARGET_ERROR)
         self.success_bonus = check_float("success_bonus", success_bonus)
         antialias = check_bool("antialias", antialias)
+        self.instruction_encoding = check_choice("instruction_encoding", instruction_encoding, INSTRUCTION_ENCODINGS)
         self.tasks = self._check_tasks(instruction)
         self._task_list = tuple(parse_task(n, self.fit) for n in all_tasks(self.fit))
         self.num_bins = 2 * int(round(self.max_delta / ACTION_BIN)) + 1
@@ -224,7 +255,11 @@ class NistBoardInsertEnv(LfdEnv):
             return self.state_space
         h, w = self.image_size
         obs: dict[str, spaces.Space] = {c: spaces.Box(0, 255, (h, w, 3), np.uint8) for c in self.cameras}
-        obs["instruction"] = spaces.Text(max_length=64, min_length=1, charset=INSTRUCTION_CHARSET)
+        if self.instruction_encoding == "text":
+            obs["instruction"] = spaces.Text(max_length=64, min_length=1, charset=INSTRUCTION_CHARSET)
+        else:
+            n = len(board.SIZE_NAMES)
+            obs["instruction_tokens"] = spaces.MultiDiscrete(np.array([n, n], dtype=np.int64))
         if obs_mode == "state+image":
             obs["state"] = self.state_space
         return spaces.Dict(obs)
@@ -381,7 +416,10 @@ class NistBoardInsertEnv(LfdEnv):
         if self.obs_mode == "state":
             return self._state_obs()
         obs: dict[str, Any] = {c: self.camera_image(c) for c in self.cameras}
-        obs["instruction"] = self.instruction
+        if self.instruction_encoding == "text":
+            obs["instruction"] = self.instruction
+        else:
+            obs["instruction_tokens"] = instruction_tokens(self.instruction)
         if self.obs_mode == "state+image":
             obs["state"] = self._state_obs()
         return obs
@@ -448,5 +486,5 @@ class NistBoardInsertEnv(LfdEnv):
         super().close()
 
 
-__all__ = ["NistBoardInsertEnv", "NistTask", "parse_task", "all_tasks", "TRAIN_TASKS", "HELDOUT_TASKS",
+__all__ = ["NistBoardInsertEnv", "NistTask", "parse_task", "all_tasks", "instruction_tokens", "instruction_from_tokens", "TRAIN_TASKS", "HELDOUT_TASKS",
            "ACTION_BIN", "CAMERAS"]
