@@ -127,6 +127,7 @@ class LfdEnv(gym.Env):
         self._step_count = 0
         self._p0 = 0.0
         self._prev_perf = 0.0
+        self._episode_count = 0
 
     def _finish_init(self) -> None:
         """Build ``observation_space`` from ``obs_mode``. Call last in ``__init__``."""
@@ -208,6 +209,7 @@ class LfdEnv(gym.Env):
         rng = self.variants.rng(split, k)
         self._variant_split, self._variant_index = split, int(k)
         self._setup_variant(rng)
+        self._episode_count += 1
         self._step_count = 0
         self._p0 = self._prev_perf = float(self._performance())
         return self._observation(), self._info(self._p0)
@@ -274,7 +276,14 @@ class LfdEnv(gym.Env):
 
     @property
     def elapsed_steps(self) -> int:
+        """Steps taken in the current episode."""
         return self._step_count
+
+    @property
+    def episode_count(self) -> int:
+        """Episodes started so far: one more after every ``reset`` and every ``set_state``
+        (experts use it to notice a new episode without being reset by hand)."""
+        return self._episode_count
 
     # ------------------------------------------------------------------ state
     def _task_identity(self) -> dict[str, Any]:
@@ -321,6 +330,7 @@ class LfdEnv(gym.Env):
             self._setup_variant(self.variants.rng(episode.split, episode.variant))
             self._variant_split, self._variant_index = episode.split, episode.variant
         self._set_sim_state(sim)
+        self._episode_count += 1
         self._step_count = episode.step
         self._p0 = episode.p0
         self._prev_perf = episode.prev_performance

@@ -4,8 +4,10 @@
 
     expert = make_expert(env)
     obs, info = env.reset(seed=0)
-    expert.reset()                       # after every env.reset
     action, _ = expert.predict(obs, deterministic=True)
+
+Experts notice a new episode by themselves (the env's ``episode_count``, see
+:mod:`lfd_envs.experts.episodes`); ``expert.reset()`` is still allowed.
 
 Experts may read the privileged simulator state of ``env.unwrapped``; they work for every
 picker count and action mode their task supports (see each expert's docstring).

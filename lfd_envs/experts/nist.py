@@ -28,6 +28,7 @@ import numpy as np
 
 from lfd_envs.core.rollout import play_episode
 from lfd_envs.mujoco.nist import ACTION_BIN
+from lfd_envs.experts.episodes import EpisodeTracker
 
 APPROACH_HEIGHT = 0.006
 SLOW_ZONE = 0.005
@@ -59,7 +60,7 @@ class NistInsertExpert:
         self.misalign_range = (lo, hi)
         self.seed = int(seed)
         self._fresh = True
-        self._last_step = -1
+        self._episodes = EpisodeTracker(env)
         self.phase = "approach"
         self.offset = np.zeros(2)
         self.attempts = 0
@@ -67,7 +68,7 @@ class NistInsertExpert:
 
     # ------------------------------------------------------------------ episode state
     def reset(self) -> None:
-        """Start a new episode (call after ``env.reset``)."""
+        """Start a new episode (done by itself when the env starts a new episode)."""
         self._fresh = True
 
     def _start_episode(self) -> None:
@@ -95,9 +96,8 @@ class NistInsertExpert:
                 deterministic: bool = True) -> tuple[np.ndarray, None]:
         """Action for the current env state (the observation itself is not used)."""
         e = self.env.unwrapped
-        if self._fresh or bool(np.any(episode_start)) or e.elapsed_steps < self._last_step:
+        if self._episodes.new_episode() or self._fresh or bool(np.any(episode_start)):
             self._start_episode()
-        self._last_step = e.elapsed_steps
         goal = self._goal(e)
         repeat = e.action_repeat
         target = e.commanded_target

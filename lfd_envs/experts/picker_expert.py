@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from lfd_envs.tasks.picker_actions import arc_length, carry_point
+from lfd_envs.experts.episodes import EpisodeTracker
 
 __all__ = ["Move", "PickerExpert"]
 
@@ -83,6 +84,7 @@ class PickerExpert:
         self.hold_speed = float(hold_speed)
         self.tolerance = float(tolerance)
         self.max_phase_steps = int(max_phase_steps)
+        self._episodes = EpisodeTracker(env)
         self.reset()
 
     # ------------------------------------------------------------------ to implement
@@ -96,7 +98,8 @@ class PickerExpert:
 
     # ------------------------------------------------------------------ state
     def reset(self) -> None:
-        """Forget the current plan (call after every ``env.reset``)."""
+        """Forget the current plan (done by itself when the env starts a new episode)."""
+        self._episodes.mark()
         self.moves_done = 0
         self._move: Move | None = None
         self._phase = 0
@@ -122,6 +125,8 @@ class PickerExpert:
     def predict(self, observation: Any, state: Any = None, episode_start: Any = None,
                 deterministic: bool = True) -> tuple[np.ndarray, None]:
         """Action for the env's current state (the observation itself is not needed)."""
+        if self._episodes.new_episode():
+            self.reset()
         if self.mode == "pick_place":
             action = self._pick_place_action()
         else:

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from lfd_envs.mujoco.planning import plan_path
+from lfd_envs.experts.episodes import EpisodeTracker
 
 LINKS = np.array([0.1, 0.1, 0.1, 0.11])  # last: joint3 -> fingertip site
 CONTACT = 0.02  # box centre ahead of the fingertip when it touches the cross bar
@@ -116,10 +117,12 @@ class Push2DExpert:
     def __init__(self, env: Any, seed: int = 0) -> None:
         self.env = env.unwrapped
         self.seed = int(seed)
+        self._episodes = EpisodeTracker(env)
         self.reset()
 
     def reset(self) -> None:
-        """Forget the current plan (call after every ``env.reset``)."""
+        """Forget the current plan (done by itself when the env starts a new episode)."""
+        self._episodes.mark()
         self._rng = np.random.default_rng(self.seed)
         self._path: np.ndarray | None = None
         self._waypoint = 0
@@ -210,6 +213,8 @@ class Push2DExpert:
     def predict(self, observation: Any, state: Any = None, episode_start: Any = None,
                 deterministic: bool = True) -> tuple[np.ndarray, None]:
         """Action for the env's current state (``observation`` is not needed; privileged state is read)."""
+        if self._episodes.new_episode():
+            self.reset()
         q = self.env.arm_qpos()
         action = np.zeros(4)
         if self._phase == "plan":

@@ -27,6 +27,7 @@ import numpy as np
 from lfd_envs.mujoco import sawyer_models as sm
 from lfd_envs.mujoco.planning import densify_path
 from lfd_envs.mujoco.sawyer import SawyerIK
+from lfd_envs.experts.episodes import EpisodeTracker
 
 
 class ClearanceChecker:
@@ -145,10 +146,12 @@ class _SawyerExpert:
         self.checker = ClearanceChecker(env, self.clearance, self.clearance_ignore)
         self._plan = make_planner(env, planner_time, seed, is_valid=self.checker)
         self.seed = int(seed)
+        self._episodes = EpisodeTracker(env)
         self.reset()
 
     def reset(self) -> None:
-        """Forget the current plan (call after every ``env.reset``)."""
+        """Forget the current plan (done by itself when the env starts a new episode)."""
+        self._episodes.mark()
         self._rng = np.random.default_rng(self.seed)  # IK seeds: the same in every episode
         self.phase = "plan"
         self.path: np.ndarray | None = None
@@ -241,6 +244,8 @@ class _SawyerExpert:
     def predict(self, observation: Any, state: Any = None, episode_start: Any = None,
                 deterministic: bool = True) -> tuple[np.ndarray, None]:
         """SB3-style policy call; the expert reads the privileged simulator state."""
+        if self._episodes.new_episode():
+            self.reset()
         zero = np.zeros(self.base.n_arm)
         if self.phase == "plan":
             if self.wait > 0:
