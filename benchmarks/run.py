@@ -149,7 +149,7 @@ def environment_info() -> dict[str, Any]:
     import importlib.metadata as md
 
     versions = {}
-    for pkg in ("lfd", "gymnasium", "stable-baselines3", "torch", "warp-lang", "mujoco", "numpy", "ompl", "minari"):
+    for pkg in ("lfd-suite", "gymnasium", "stable-baselines3", "torch", "warp-lang", "mujoco", "numpy", "ompl", "minari"):
         try:
             versions[pkg] = md.version(pkg)
         except md.PackageNotFoundError:

@@ -16,8 +16,14 @@ Python::
 
 Command line::
 
-    python -m lfd_envs.datasets collect --env ClothFold-v0 --episodes 20 --out demos \
-        [--num-pickers 2 --action-mode pick_place --obs-mode state --seed 0 --policy expert|random]
+    python -m lfd_envs.datasets collect --env ClothFold-v0 --episodes 20 \
+        [--out DIR --num-pickers 2 --action-mode pick_place --obs-mode state --seed 0 --policy expert|random]
+
+Without ``--out`` (``out_dir=None``) datasets go to Minari's own datasets folder
+(``$MINARI_DATASETS_PATH``, else ``~/.minari/datasets``), where ``minari list local`` and
+``minari.load_dataset("lfd/ClothFold/expert-v0")`` find them. With ``--out DIR`` the command
+prints the ``MINARI_DATASETS_PATH`` to set for Minari's tools. The datasets are local: Minari's
+``show`` lists a ``minari download`` line for every dataset, which does not apply to them.
 
 Note: Minari's HDF5 storage JPEG-encodes uint8 image observations; images can be rendered
 again exactly from the stored states.
@@ -190,7 +196,7 @@ def dataset_id(env_id: str, name: str) -> str:
 def collect(
     env_id: str,
     episodes: int,
-    out_dir: str | os.PathLike,
+    out_dir: str | os.PathLike | None = None,
     *,
     env_kwargs: dict[str, Any] | None = None,
     policy: str | Callable[[gym.Env], Any] | None = None,
@@ -205,7 +211,8 @@ def collect(
     Args:
         env_id: registered env id, e.g. ``"ClothFold-v0"``.
         episodes: number of episodes to store (must be >= 1).
-        out_dir: root folder of the dataset (Minari's datasets path for this dataset).
+        out_dir: root folder of the dataset (Minari's datasets path for this dataset); None:
+            Minari's default datasets folder (:func:`minari_root`).
         env_kwargs: constructor arguments of the env.
         policy: ``"expert"`` (default), ``"random"`` or a factory ``env -> policy`` whose
             policy has ``predict(obs, deterministic=True) -> (action, _)`` and optionally ``reset()``.
@@ -253,7 +260,14 @@ def collect(
     return write_dataset(kept, env, env_id, out_dir, name=name, env_kwargs=env_kwargs, seed=seed, split=split)
 
 
-def write_dataset(episodes: list[Any], env: gym.Env, env_id: str, out_dir: str | os.PathLike, *, name: str,
+def minari_root() -> Path:
+    """The folder Minari's tools read datasets from (``$MINARI_DATASETS_PATH`` or ``~/.minari/datasets``)."""
+    from minari.storage import get_dataset_path
+
+    return get_dataset_path().resolve()
+
+
+def write_dataset(episodes: list[Any], env: gym.Env, env_id: str, out_dir: str | os.PathLike | None, *, name: str,
                   env_kwargs: dict[str, Any] | None = None, seed: int = 0, split: str = "train",
                   extra: dict[str, Any] | None = None) -> Path:
     """Save recorded episodes (``EpisodeRecorder`` or Minari ``EpisodeBuffer``) as a Minari dataset."""
@@ -267,6 +281,7 @@ def write_dataset(episodes: list[Any], env: gym.Env, env_id: str, out_dir: str |
         kept.append(ep.buffer())
     env_kwargs = dict(env_kwargs or {})
     ds_id = dataset_id(env_id, name)
+    out_dir = minari_root() if out_dir is None else out_dir
     with _datasets_root(out_dir):
         with contextlib.suppress(FileNotFoundError):
             minari.delete_dataset(ds_id)
@@ -275,7 +290,7 @@ def write_dataset(episodes: list[Any], env: gym.Env, env_id: str, out_dir: str |
             warnings.filterwarnings("ignore", category=UserWarning, module="minari")
             minari.create_dataset_from_buffers(
                 dataset_id=ds_id, buffer=kept, env=env, eval_env=env, algorithm_name=f"lfd-{name}",
-                author="lfd", code_permalink="https://pypi.org/project/lfd/",
+                author="lfd", code_permalink=None,
                 description=json.dumps({"env_id": env_id, "env_kwargs": env_kwargs, "policy": name,
                                         "seed": seed, "split": split, **(extra or {})}),
             )
@@ -346,7 +361,7 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     c = sub.add_parser("collect", help="roll out the expert (or random) policy and save a Minari dataset")
     c.add_argument("--env", required=True, help="env id, e.g. ClothFold-v0")
     c.add_argument("--episodes", type=int, required=True)
-    c.add_argument("--out", required=True, help="output folder")
+    c.add_argument("--out", help="output folder (default: Minari's datasets folder, where `minari list local` looks)")
     c.add_argument("--num-pickers", type=int)
     c.add_argument("--action-mode")
     c.add_argument("--obs-mode")
@@ -360,6 +375,19 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
+def _print_minari_hint(path: Path) -> None:
+    """Tell how Minari's tools find a dataset written outside their datasets folder."""
+    root = Path(*path.parts[:-3])
+    ds_id = "/".join(path.parts[-3:])
+    if root != minari_root():
+        print(f"Minari's tools look in {minari_root()}; to use this dataset with them run\n"
+              f"    export MINARI_DATASETS_PATH={root}\n"
+              f"then `minari list local` or minari.load_dataset({ds_id!r}); "
+              f"lfd_envs.datasets.load({str(path)!r}) works as it is.")
+    else:
+        print(f"`minari list local` and minari.load_dataset({ds_id!r}) find it.")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parse(argv)
     if args.command == "collect":
@@ -371,6 +399,7 @@ def main(argv: list[str] | None = None) -> int:
         finals = [float(ep.infos["normalized_performance"][-1]) for ep in ds.iterate_episodes()]
         print(f"wrote {path}: {ds.total_episodes} episodes, {ds.total_steps} steps, "
               f"mean final p̂ {np.mean(finals):.3f}")
+        _print_minari_hint(path)
     else:
         ds = load(args.path)
         finals = [float(ep.infos["normalized_performance"][-1]) for ep in ds.iterate_episodes()]
