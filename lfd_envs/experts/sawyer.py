@@ -5,8 +5,9 @@ Every expert follows the same two phases, using only the env's planning interfac
 
 1. **Plan.** Inverse kinematics (:class:`~lfd_envs.mujoco.sawyer.SawyerIK`, MuJoCo Jacobians,
    several seeds) gives a valid pre-contact configuration; a joint path to it comes from OMPL
-   RRT-Connect (``lfd_agents.mopa.planner.OMPLPlanner``: straight line first when it is free)
-   or, when OMPL is unavailable, from :func:`lfd_envs.mujoco.planning.plan_path`, with a
+   RRT-Connect (:class:`lfd_envs.mujoco.ompl_planner.OMPLPlanner`, the planner MoPA uses too:
+   straight line first when it is free) or, when OMPL is not installed, from
+   :func:`lfd_envs.mujoco.planning.plan_path` (with a warning naming both), with a
    stricter validity check (:class:`ClearanceChecker`: 1.5 cm from obstacles, so the arm does
    not drag along walls it grazes). The path is followed waypoint by waypoint (steps of
    0.03 rad, actions compensating the servos' per-joint lag).
@@ -20,12 +21,14 @@ If IK or planning fails the expert retries a few steps later from wherever the a
 from __future__ import annotations
 
 import copy
+import warnings
 from typing import Any, Sequence
 
 import numpy as np
 
 from lfd_envs.mujoco import sawyer_models as sm
-from lfd_envs.mujoco.planning import densify_path
+from lfd_envs.mujoco.ompl_planner import OMPLPlanner, ompl_available
+from lfd_envs.mujoco.planning import densify_path, plan_path
 from lfd_envs.mujoco.sawyer import SawyerIK
 from lfd_envs.experts.episodes import EpisodeTracker
 
@@ -91,11 +94,10 @@ def make_planner(env: Any, time_limit: float = 2.0, seed: int = 0, is_valid: Any
     """
     base = env.unwrapped
     check = base.is_valid if is_valid is None else is_valid
-    try:
-        from lfd_agents.mopa.planner import OMPLPlanner
-    except ImportError:  # OMPL (or lfd_agents) missing: the env package's own RRT-Connect
-        from lfd_envs.mujoco.planning import plan_path
-
+    if not ompl_available():
+        warnings.warn("OMPL is not installed: the Sawyer expert plans with lfd_envs.mujoco.planning.plan_path "
+                      "(RRT-Connect in Python) instead of OMPLPlanner (OMPL RRT-Connect); its paths and "
+                      "success rates differ from the documented ones", RuntimeWarning, stacklevel=2)
         rng = np.random.default_rng(seed)
         checked = _WithValidity(base, check)
         return lambda q0, q1: plan_path(checked, q1, q0, rng=rng)
