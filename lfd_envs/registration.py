@@ -12,7 +12,10 @@ import gymnasium as gym
 _P = "lfd_envs.tasks"
 _M = "lfd_envs.mujoco"
 
-#: env id -> (entry point, vector entry point or None, default kwargs, horizon of the default configuration)
+#: env id -> (entry point, vector entry point or None, default kwargs, max_episode_steps). For the MuJoCo
+#: ids max_episode_steps is the default configuration's horizon; for the particle ids it is the longest
+#: default horizon over the action modes (DryCloth and ThreeBoxes: 75 delta steps; their default
+#: pick_place episodes last 3), see :func:`register_all`.
 ENV_SPECS: dict[str, tuple[str, str | None, dict, int]] = {
     "StraightenRope-v0": (f"{_P}.rope:StraightenRopeEnv", f"{_P}.rope:StraightenRopeVectorEnv", {}, 75),
     "ClothFold-v0": (f"{_P}.cloth_fold:ClothFoldEnv", f"{_P}.cloth_fold:ClothFoldVectorEnv", {}, 100),
@@ -25,8 +28,8 @@ ENV_SPECS: dict[str, tuple[str, str | None, dict, int]] = {
     "ClothFoldDiagonalUnpinned-v0": (
         f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalEnv", f"{_P}.cloth_fold_diagonal:ClothFoldDiagonalVectorEnv",
         {"pinned": False}, 100),
-    "DryCloth-v0": (f"{_P}.dry_cloth:DryClothEnv", f"{_P}.dry_cloth:DryClothVectorEnv", {}, 3),
-    "ThreeBoxes-v0": (f"{_P}.three_boxes:ThreeBoxesEnv", f"{_P}.three_boxes:ThreeBoxesVectorEnv", {}, 3),
+    "DryCloth-v0": (f"{_P}.dry_cloth:DryClothEnv", f"{_P}.dry_cloth:DryClothVectorEnv", {}, 75),
+    "ThreeBoxes-v0": (f"{_P}.three_boxes:ThreeBoxesEnv", f"{_P}.three_boxes:ThreeBoxesVectorEnv", {}, 75),
     "Push2DObstacle-v0": (f"{_M}.push2d:Push2DObstacleEnv", None, {}, 400),
     "SawyerPushObstacle-v0": (f"{_M}.sawyer_push:SawyerPushObstacleEnv", None, {}, 250),
     "SawyerLiftObstacle-v0": (f"{_M}.sawyer_lift:SawyerLiftObstacleEnv", None, {}, 250),
@@ -42,8 +45,12 @@ MUJOCO_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if v[0].startswith(_M))
 def register_all() -> None:
     """Register every id in :data:`ENV_SPECS` (idempotent).
 
-    ``max_episode_steps`` is the default configuration's horizon; :class:`~lfd_envs.core.time_limit.MatchHorizon`
-    keeps ``gymnasium.make``'s ``TimeLimit`` at the horizon of the configuration actually made.
+    Every spec has ``max_episode_steps``; the envs truncate at their own ``horizon`` as well.
+    MuJoCo ids get :class:`~lfd_envs.core.time_limit.MatchHorizon`, which keeps ``gymnasium.make``'s
+    ``TimeLimit`` at the horizon of the configuration actually made. Particle ids have vector
+    entry points, which Gymnasium does not allow together with additional wrappers: their
+    ``TimeLimit`` is the registered value, at least every default horizon of the task, so it only
+    cuts an episode short for an explicit ``horizon`` above it (pass ``max_episode_steps`` then).
     """
     from lfd_envs.core.time_limit import MATCH_HORIZON
 
@@ -52,5 +59,6 @@ def register_all() -> None:
             continue
         # Our envs enforce the contract themselves (and pass check_env); Gymnasium's
         # passive checker would only add per-step overhead.
+        wrappers = () if vec_entry is not None else (MATCH_HORIZON,)
         gym.register(id=env_id, entry_point=entry, vector_entry_point=vec_entry, kwargs=dict(kwargs),
-                     disable_env_checker=True, max_episode_steps=horizon, additional_wrappers=(MATCH_HORIZON,))
+                     disable_env_checker=True, max_episode_steps=horizon, additional_wrappers=wrappers)

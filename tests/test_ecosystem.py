@@ -23,11 +23,21 @@ def time_limit(env):
     return env._max_episode_steps
 
 
+def default_horizons(base):
+    """Every default horizon of the env's task (particle tasks: one per action mode)."""
+    task = getattr(base, "task", None)
+    return [task.horizon(m) for m in ("delta", "pick_place")] if hasattr(task, "horizons") else [base.horizon]
+
+
 @pytest.mark.parametrize("env_id", sorted(lfd_envs.ENV_SPECS))
 def test_default_config_passes_check_env_and_has_max_episode_steps(env_id):
     env = gym.make(env_id)
-    horizon = env.unwrapped.horizon
-    assert gym.spec(env_id).max_episode_steps == horizon == env.spec.max_episode_steps == time_limit(env)
+    limit = gym.spec(env_id).max_episode_steps
+    assert limit == env.spec.max_episode_steps == time_limit(env)
+    if env_id in lfd_envs.MUJOCO_ENV_IDS:
+        assert limit == env.unwrapped.horizon
+    else:  # the TimeLimit never cuts a default-horizon episode in any action mode
+        assert limit == max(default_horizons(env.unwrapped)) >= env.unwrapped.horizon
     assert hasattr(env.unwrapped, "compute_reward") == isinstance(env.unwrapped, GoalEnv) == False  # noqa: E712
     check_env(env, skip_render_check=True)
     env.close()
@@ -35,7 +45,9 @@ def test_default_config_passes_check_env_and_has_max_episode_steps(env_id):
 
 def test_time_limit_follows_the_configured_horizon():
     env = gym.make("DryCloth-v0", action_mode="delta", resolution=20, obs_mode="state")
-    assert env.unwrapped.horizon == 75 and env.spec.max_episode_steps == 75 and time_limit(env) == 75
+    assert env.unwrapped.horizon == 75 and time_limit(env) == 75
+    env = gym.make("ThreeBoxes-v0", action_mode="delta", obs_mode="state")
+    assert env.unwrapped.horizon == 75 and time_limit(env) == 75
     env = gym.make("Push2DObstacle-v0", horizon=450)
     assert time_limit(env) == 450 and env.spec.max_episode_steps == 450
     env = gym.make("Push2DObstacle-v0", horizon=9, max_episode_steps=5)  # an explicit limit is kept
@@ -76,3 +88,15 @@ def test_readme_her_example_runs():
     with torch_threads(1):  # a shared 2-core machine: more threads only contend
         exec(compile(code, "README-her", "exec"), scope)
     assert scope["model"].num_timesteps == 300 and scope["model"].replay_buffer.size() > 0
+
+
+def test_vector_entry_point_still_works_with_max_episode_steps():
+    venv = gym.make_vec("DryCloth-v0", num_envs=2, vectorization_mode="vector_entry_point", resolution=20,
+                        obs_mode="state")
+    assert venv.unwrapped.horizon == 3  # make_vec's max_episode_steps (75) is an upper bound only
+    venv = gym.make_vec("ClothFold-v0", num_envs=2, vectorization_mode="vector_entry_point", resolution=8,
+                        obs_mode="state", max_episode_steps=5)
+    assert venv.unwrapped.horizon == 5
+    venv.reset(seed=0)
+    flags = [venv.step(np.zeros(venv.action_space.shape))[3] for _ in range(5)]
+    assert not any(f.any() for f in flags[:4]) and flags[4].all()

@@ -21,17 +21,19 @@ from lfd_envs.core.variants import VariantSplit
 
 OBS_MODES = ("state", "image", "state+image")
 RESET_OPTIONS = ("split", "variant")
-#: render modes of every lfd env. ``"human"`` is listed only so that ``gymnasium.make`` passes it
-#: on and the env can explain that it has no window (see :func:`check_render_mode`).
-RENDER_MODES = ["rgb_array", "human"]
+#: render modes of every lfd env (headless: no window of their own). ``gymnasium.make(...,
+#: render_mode="human")`` wraps the ``rgb_array`` env in ``gymnasium.wrappers.HumanRendering``,
+#: which needs pygame and a display.
+RENDER_MODES = ["rgb_array"]
 
 
 def check_render_mode(render_mode: Any) -> str | None:
     """``render_mode`` if it is None or ``"rgb_array"``; a clear ``ValueError`` otherwise."""
     if render_mode == "human":
-        raise ValueError("render_mode='human' is not supported: lfd envs render headless and open no window. "
-                         "Use render_mode='rgb_array' and show the frames of env.render() yourself (or wrap the "
-                         "env in gymnasium.wrappers.HumanRendering, which needs pygame and a display)")
+        raise ValueError("render_mode='human' is not supported by the env itself: lfd envs render headless and "
+                         "open no window. Use render_mode='rgb_array' and show the frames of env.render(), or "
+                         "gymnasium.make(..., render_mode='human'), which adds gymnasium.wrappers.HumanRendering "
+                         "(needs pygame and a display)")
     if render_mode is not None:
         check_choice("render_mode", render_mode, ("rgb_array",))
     return render_mode

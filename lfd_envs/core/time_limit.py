@@ -1,12 +1,13 @@
 """Keeps ``gymnasium.make``'s ``TimeLimit`` at the env's own horizon.
 
-Every id is registered with ``max_episode_steps`` = the horizon of its default configuration, so
-``gym.spec(id).max_episode_steps`` and ``gym.make(id).spec.max_episode_steps`` tell tools the
-episode length. The horizon also depends on the arguments (``horizon=``, the action mode of the
-particle tasks), and the env truncates its episodes itself. :class:`MatchHorizon` is registered as
-an additional wrapper (``gymnasium.make`` applies it right outside its ``TimeLimit``) and sets that
-``TimeLimit`` to the env's horizon, so both truncate at the same step. A ``max_episode_steps``
-passed to ``gymnasium.make`` explicitly is kept.
+The MuJoCo ids are registered with ``max_episode_steps`` = the horizon of their default
+configuration, so ``gym.spec(id).max_episode_steps`` and ``gym.make(id).spec.max_episode_steps``
+tell tools the episode length. The horizon also depends on the arguments (``horizon=``), and the
+env truncates its episodes itself. :class:`MatchHorizon` is registered as an additional wrapper
+(``gymnasium.make`` applies it right outside its ``TimeLimit``) and sets that ``TimeLimit`` to the
+env's horizon, so both truncate at the same step; a ``max_episode_steps`` passed to
+``gymnasium.make`` explicitly is kept. (Particle ids cannot have additional wrappers, see
+:func:`lfd_envs.registration.register_all`.)
 """
 
 from __future__ import annotations

@@ -22,7 +22,10 @@ Constructor arguments (both): ``num_pickers`` (1..4, task default), ``action_mod
 (``"delta"`` | ``"pick_place"``), ``obs_mode`` (``"state"``, ``"image"``, ``"state+image"``,
 ``"particles"``; task default), ``image_size`` (default 32), ``resolution`` (particles per
 cloth side / rope particles), ``device`` (Warp device, default ``"cpu"``), ``render_mode``
-(``"rgb_array"`` or None), ``horizon`` (default from the task per action mode); plus
+(``"rgb_array"`` or None), ``render_size`` (frames of ``render()``), ``horizon`` (default from
+the task per action mode; the vector env also takes ``max_episode_steps``, which
+``gymnasium.make_vec`` fills in from the spec, as an upper bound like ``gymnasium.make``'s
+``TimeLimit``); plus
 task options such as ``pinned``. ``particles`` observations are ``(N + P, 3)``: every particle,
 then the pickers. Tasks whose default action mode is ``"pick_place"`` derive from
 :class:`PickPlaceParticleEnv` / :class:`PickPlaceParticleVectorEnv` instead.
@@ -212,13 +215,14 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
     def __init__(self, num_envs: int = 1, num_pickers: int | None = None, action_mode: str = "delta",
                  obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
-                 horizon: int | None = None, render_size: int | tuple[int, int] | None = None) -> None:
+                 horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
+                 max_episode_steps: int | None = None) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode,
-                    image_size, device, render_mode, horizon, render_size)
+                    image_size, device, render_mode, horizon, render_size, max_episode_steps)
 
     def _setup(self, num_envs: int, task_options: dict[str, Any], action_mode: str, obs_mode: str | None,
                image_size: Any, device: str, render_mode: str | None, horizon: int | None,
-               render_size: Any = None) -> None:
+               render_size: Any = None, max_episode_steps: int | None = None) -> None:
         num_envs = check_int_range("num_envs", num_envs, 1)
         check_choice("action_mode", action_mode, ACTION_MODES)
         device = _check_device(device)
@@ -233,6 +237,8 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
         if render_size is not None:
             self.render_size = check_image_size(render_size, "render_size")
         self.horizon = _horizon(task, action_mode, horizon)
+        if max_episode_steps is not None:  # an upper bound, like gymnasium.make's TimeLimit
+            self.horizon = min(self.horizon, check_int_range("max_episode_steps", max_episode_steps, 1))
         self.device = device
         self.variants = VariantSplit(task.name)
         self.batch = ParticleBatch(task, self.num_envs, action_mode, device)
@@ -418,6 +424,7 @@ class PickPlaceParticleVectorEnv(ParticleVectorEnv):
     def __init__(self, num_envs: int = 1, num_pickers: int | None = None, action_mode: str = "pick_place",
                  obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
-                 horizon: int | None = None, render_size: int | tuple[int, int] | None = None) -> None:
+                 horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
+                 max_episode_steps: int | None = None) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode,
-                    image_size, device, render_mode, horizon, render_size)
+                    image_size, device, render_mode, horizon, render_size, max_episode_steps)
