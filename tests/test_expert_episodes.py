@@ -22,8 +22,7 @@ def test_sawyer_expert_needs_no_reset():
 
 
 def test_particle_expert_needs_no_reset_and_matches_reset_loop():
-    kwargs = dict(action_mode="pick_place", obs_mode="state")
-    env = gym.make("ThreeBoxes-v0", **kwargs)
+    env = gym.make("DryCloth-v0", resolution=20, obs_mode="state")  # its plan spans the episode
     expert = make_expert(env)
     auto = [i["normalized_performance"] for i in run_without_expert_reset(env, expert, [0, 1, 2])]
     manual = []
@@ -31,7 +30,7 @@ def test_particle_expert_needs_no_reset_and_matches_reset_loop():
         obs, _ = env.reset(seed=k, options={"split": "eval", "variant": k})
         expert.reset()  # still allowed, and changes nothing
         manual.append(finish_episode(env, expert, obs)["normalized_performance"])
-    assert auto == manual and min(auto) > 0.9
+    assert auto == manual and min(auto[1:]) > 0.2  # a stale plan scored 0.0 on these
 
 
 def test_set_state_counts_as_a_new_episode():
