@@ -55,18 +55,22 @@ Episodes: terminated on success (MoPA-RL), truncated after ``horizon`` low-level
 
 from __future__ import annotations
 
+import contextlib
 import inspect
+import io
 from typing import Any, ClassVar, Sequence
 
 import mujoco
 import numpy as np
 from gymnasium import spaces
-from gymnasium_robotics.core import GoalEnv
 
 from lfd_envs.core.base_env import LfdEnv
 from lfd_envs.core.errors import check_bool, check_choice
 from lfd_envs.core.state import check_range
 from lfd_envs.mujoco.rendering import make_renderer
+
+with contextlib.redirect_stderr(io.StringIO()):  # gymnasium-robotics prints a notice about its own envs
+    from gymnasium_robotics.core import GoalEnv
 
 #: bounds used for hinge joints without limits (documented in ``joint_limits``)
 CONTINUOUS_JOINT_RANGE = (-2.0 * np.pi, 2.0 * np.pi)
