@@ -8,9 +8,7 @@ scripted or recurrent agents) and ``needs_training = False`` (skip ``learn``).
 
 from __future__ import annotations
 
-import hashlib
 import importlib
-import json
 from pathlib import Path
 from typing import Any, Callable
 
@@ -18,6 +16,7 @@ import gymnasium as gym
 import numpy as np
 
 AgentFactory = Callable[..., Any]
+DEFAULT_RESULTS = Path(__file__).resolve().parent / "results"  #: default --out of benchmarks.run
 
 
 class RandomAgent:
@@ -91,18 +90,41 @@ def _policy_name(env: gym.Env) -> str:
     return "MlpPolicy"
 
 
+def _image_extractor_kwargs(env: gym.Env) -> dict[str, Any]:
+    """Policy kwargs giving SB3 the project's image encoders for image observations.
+
+    SB3's ``NatureCNN`` needs images of at least 36×36 pixels; :class:`lfd_agents.ImageEncoder`
+    (the encoder DMfD uses) works from 16×16, so SAC/TD3/PPO see images through the same
+    network as the demonstration agents. Dict observations use ``KeySubsetExtractor`` (images
+    through ``ImageEncoder``, vectors flattened). Empty for vector observations.
+    """
+    policy = _policy_name(env)
+    if policy == "CnnPolicy":
+        from lfd_agents.networks import ImageEncoder
+
+        return {"features_extractor_class": ImageEncoder}
+    if policy == "MultiInputPolicy":
+        from lfd_agents.networks import KeySubsetExtractor
+
+        return {"features_extractor_class": KeySubsetExtractor}
+    return {}
+
+
 def _sb3(algo_name: str) -> AgentFactory:
     def factory(env: gym.Env, seed: int = 0, **kwargs: Any):
         import stable_baselines3 as sb3
 
         algo = getattr(sb3, algo_name)
         kwargs.setdefault("verbose", 0)
+        kwargs.setdefault("device", "cpu")
         if algo_name in ("SAC", "TD3"):
             kwargs.setdefault("learning_starts", 100)
             kwargs.setdefault("buffer_size", 100_000)
-        return algo(_policy_name(env), env, seed=seed, device="cpu", **kwargs)
+        kwargs["policy_kwargs"] = {**_image_extractor_kwargs(env), **dict(kwargs.get("policy_kwargs") or {})}
+        return algo(_policy_name(env), env, seed=seed, **kwargs)
 
-    factory.__doc__ = f"Stable-Baselines3 {algo_name} with its default hyper-parameters."
+    factory.__doc__ = (f"Stable-Baselines3 {algo_name} with its default hyper-parameters "
+                       "(image observations through lfd_agents.ImageEncoder).")
     return factory
 
 
@@ -125,33 +147,25 @@ def _named_factory(module: str, name: str) -> AgentFactory:
     return factory
 
 
-DEMO_CACHE = Path(__file__).resolve().parent / "results" / "_demos"
-
-
-def demonstrations_for(env: gym.Env, episodes: int, seed: int = 0) -> Path:
-    """Expert demonstrations (Minari) for the env's id and kwargs, collected once and cached."""
-    from lfd_envs import datasets
-
-    spec = env.spec
-    if spec is None:
-        raise ValueError("demonstration agents need an env made with gymnasium.make (env.spec is None)")
-    kwargs = {k: v for k, v in spec.kwargs.items() if k != "render_mode"}
-    key = hashlib.sha256(json.dumps([spec.id, kwargs, episodes, seed], sort_keys=True, default=str).encode())
-    root = DEMO_CACHE / key.hexdigest()[:16]
-    found = sorted(p.parent for p in root.rglob("data")) if root.exists() else []
-    if found:
-        return found[0]
-    return datasets.collect(spec.id, episodes, root, env_kwargs=kwargs, seed=seed + 500_000, progress=False)
-
-
 def _lfd_demo_agent(class_name: str) -> AgentFactory:
-    def factory(env: gym.Env, seed: int = 0, demo_episodes: int = 20, **kwargs: Any):
+    def factory(env: gym.Env, seed: int = 0, demo_episodes: int = 20, demo_cache: str | Path | None = None,
+                **kwargs: Any):
+        from benchmarks.demo_cache import CACHE_DIRNAME, demonstrations_for
+
         cls = getattr(importlib.import_module("lfd_agents"), class_name)
-        demos = demonstrations_for(env, int(demo_episodes))
+        cache = Path(demo_cache) if demo_cache is not None else DEFAULT_RESULTS / CACHE_DIRNAME
+        demos = demonstrations_for(env, int(demo_episodes), cache)
         kwargs.setdefault("device", "cpu")
-        return cls(_policy_name(env), env, demonstrations=str(demos), seed=seed, **kwargs)
+        policy = _policy_name(env)
+        if getattr(cls.policy_aliases.get(policy), "__module__", "").startswith("stable_baselines3"):
+            # an SB3 policy (SAC-LfD): give it the project's image encoder, as for plain SAC
+            kwargs["policy_kwargs"] = {**_image_extractor_kwargs(env), **dict(kwargs.get("policy_kwargs") or {})}
+        agent = cls(policy, env, demonstrations=str(demos.path), seed=seed, **kwargs)
+        agent.demo_transitions = demos.transitions
+        return agent
 
     factory.__doc__ = f"lfd_agents.{class_name} with `demo_episodes` expert demonstrations (cached)."
+    factory.uses_demo_cache = True  # the harness passes demo_cache=<out>/_demos
     return factory
 
 

@@ -1,35 +1,60 @@
-"""Turn the per-cell JSON results into ``leaderboard.md`` and learning-curve PNGs."""
+"""Turn the per-cell JSON results into ``leaderboard.md`` with its plots.
+
+Per env: the thesis table (25th percentile, mean ± std, median, 75th percentile of p̂(H)),
+IQM and mean with rliable's bootstrap CIs, what each agent spent (env steps, gradient updates,
+demonstration transitions), reference rows a suite reports from the literature, the suite's
+notes, learning curves and the probability that DMfD improves on each baseline. Across envs:
+IQM / mean interval estimates and performance profiles. Files are written atomically.
+"""
 
 from __future__ import annotations
 
-import json
-import re
 import os
+import re
+import sys
 from collections import defaultdict
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from benchmarks.stats import summarize
+from benchmarks import plots
+from benchmarks.stats import iqm_and_mean, performance_profiles, probability_of_improvement, summarize
+from benchmarks.storage import CorruptResult, atomic_write_text, read_result, result_files
 
 HEADER = ("| agent | seeds | episodes | 25th pct | mean ± std | median | 75th pct | IQM [95% CI] "
-          "| budget (steps) | train wall time |")
+          "| env steps | gradient updates | demo transitions | train wall time |")
+#: agents that are references, not learners (never "baselines" of a comparison)
+REFERENCE_AGENTS = ("expert", "random", "zero")
+#: the agent compared against every baseline with the probability of improvement
+IMPROVER = "dmfd"
+
+# kept importable from here for callers of the old module
+plot_curves = plots.plot_curves
 
 
 def load_results(results_dir: Path, suite: str | None = None) -> list[dict[str, Any]]:
-    """All cell results under ``results_dir`` (optionally of one suite)."""
-    root = Path(results_dir) / suite if suite else Path(results_dir)
-    return [json.loads(p.read_text()) for p in sorted(root.rglob("*.json"))]
+    """All valid cell results under ``results_dir`` (optionally of one suite); corrupt ones are
+    reported on stderr by path and left out. The demonstration cache (``_demos``) is not read."""
+    results = []
+    for path in result_files(results_dir, suite):
+        try:
+            results.append(read_result(path))
+        except CorruptResult as exc:
+            print(f"warning: skipping {exc}", file=sys.stderr)
+    return results
+
+
+def _env_label(cell: dict[str, Any]) -> str:
+    label = cell.get("tags", {}).get("label")
+    return cell["env_id"] + (f" ({label})" if label else "")
 
 
 def group_by_env(results: list[dict[str, Any]]) -> dict[str, dict[str, list[dict[str, Any]]]]:
     """``{env label: {agent: [results over seeds]}}``."""
     table: dict[str, dict[str, list]] = defaultdict(lambda: defaultdict(list))
     for r in results:
-        cell = r["cell"]
-        label = cell["env_id"] + (f" ({cell['tags']['label']})" if cell.get("tags", {}).get("label") else "")
-        table[label][cell["agent"]].append(r)
+        table[_env_label(r["cell"])][r["cell"]["agent"]].append(r)
     return table
 
 
@@ -41,60 +66,96 @@ def _fmt_time(seconds: float) -> str:
     return f"{seconds / 3600:.1f} h"
 
 
+def _fmt_count(n: float) -> str:
+    if n >= 1e6:
+        return f"{n / 1e6:.2f}M"
+    if n >= 1e4:
+        return f"{n / 1e3:.1f}k"
+    return f"{n:.0f}"
+
+
+def _budget(runs: list[dict[str, Any]], key: str) -> str:
+    """Mean of ``key`` over seeds; results written before budgets were recorded show ``?``
+    (env steps: the requested budget, marked ``*``)."""
+    values = [r[key] for r in runs if key in r]
+    if len(values) == len(runs):
+        return _fmt_count(float(np.mean(values)))
+    if key == "env_steps":
+        return f"{_fmt_count(float(np.mean([r.get('trained_steps', 0) for r in runs])))}*"
+    return "?"
+
+
 def agent_row(agent: str, runs: list[dict[str, Any]]) -> tuple[str, dict[str, float]]:
     """Markdown row and summary numbers for one agent on one env."""
     values = np.concatenate([np.asarray(r["final_normalized_performance"], dtype=float) for r in runs])
     s = summarize(values)
-    budget = max(int(r["cell"]["budget"]) if r.get("trained_steps") else 0 for r in runs)
-    wall = float(np.mean([r["train_wall_time_s"] for r in runs]))
+    wall = float(np.mean([r.get("train_wall_time_s", 0.0) for r in runs]))
     row = (f"| {agent} | {len(runs)} | {s.n} | {s.p25:.3f} | {s.mean:.3f} ± {s.std:.3f} | {s.median:.3f} | "
            f"{s.p75:.3f} | {s.iqm:.3f} [{s.iqm_ci_low:.3f}, {s.iqm_ci_high:.3f}] | "
-           f"{budget if budget else '—'} | {_fmt_time(wall)} |")
+           f"{_budget(runs, 'env_steps')} | {_budget(runs, 'gradient_updates')} | "
+           f"{_budget(runs, 'demo_transitions')} | {_fmt_time(wall)} |")
     return row, s.as_dict()
 
 
-def plot_curves(env_label: str, agents: dict[str, list[dict[str, Any]]], path: Path) -> bool:
-    """Mean learning curve per trained agent (shaded: min–max over seeds). False if nothing to plot."""
-    import matplotlib
+def _num(row: dict[str, Any], key: str) -> str:
+    v = row.get(key)
+    return f"{float(v):.3f}" if isinstance(v, (int, float)) else "—"
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(5, 3.2))
-    plotted = False
-    for agent, runs in sorted(agents.items()):
-        curves = [r["learning_curve"] for r in runs if r.get("learning_curve")]
-        if not curves:
+def reference_row(agent: str, source: str, row: dict[str, Any]) -> str:
+    """A row of numbers reported elsewhere (``source``), labelled e.g. ``*thesis: dmfd*``."""
+    prefix = source.split()[0] if source.strip() else "reported"
+    mean = _num(row, "mean") + (f" ± {_num(row, 'std')}" if "std" in row else "")
+    return (f"| *{prefix}: {agent}* | — | — | {_num(row, 'p25')} | {mean} | {_num(row, 'median')} | "
+            f"{_num(row, 'p75')} | — | — | — | — | — |")
+
+
+def references_for(suite_config: dict[str, Any] | None, env_label: str, env_id: str) -> dict[str, Any] | None:
+    """The suite's ``reference`` entry of this env (keyed by the env label or the env id)."""
+    refs = (suite_config or {}).get("reference") or {}
+    entry = refs.get(env_label) or refs.get(env_id) or refs.get(env_id.split(":")[-1])
+    if entry is not None and not isinstance(entry.get("rows"), dict):
+        raise ValueError(f"reference for {env_label!r} needs a 'rows' object {{agent: {{mean, std, ...}}}}")
+    return entry
+
+
+def _episode_scores(runs: list[dict[str, Any]]) -> np.ndarray:
+    return np.concatenate([np.asarray(r["final_normalized_performance"], dtype=float) for r in runs])
+
+
+def improvement(agents: dict[str, list[dict[str, Any]]]) -> dict[str, tuple[float, float, float]]:
+    """P(DMfD > baseline) with 95% CI for every learning baseline (episodes × seeds as runs)."""
+    if IMPROVER not in agents:
+        return {}
+    x = _episode_scores(agents[IMPROVER])
+    return {b: probability_of_improvement(x, _episode_scores(runs)) for b, runs in sorted(agents.items())
+            if b != IMPROVER and b not in REFERENCE_AGENTS}
+
+
+def seed_matrix(table: dict[str, dict[str, list[dict[str, Any]]]]) -> dict[str, np.ndarray]:
+    """``{agent: (seeds, envs)}`` of per-seed mean p̂ for agents run on every env with common seeds."""
+    envs = sorted(table)
+    out = {}
+    for agent in sorted({a for agents in table.values() for a in agents}):
+        if not all(agent in table[e] for e in envs):
             continue
-        n = min(len(c) for c in curves)
-        steps = [c["steps"] for c in curves[0][:n]]
-        ys = np.array([[p["mean_normalized_performance"] for p in c[:n]] for c in curves])
-        ax.plot(steps, ys.mean(0), marker="o", label=agent)
-        if len(ys) > 1:
-            ax.fill_between(steps, ys.min(0), ys.max(0), alpha=0.2)
-        plotted = True
-    for agent, runs in sorted(agents.items()):
-        if not any(r.get("learning_curve") for r in runs):  # reference rows as horizontal lines
-            mean = np.mean([np.mean(r["final_normalized_performance"]) for r in runs])
-            ax.axhline(mean, linestyle="--", linewidth=1, color="gray" if agent == "random" else "black")
-            ax.annotate(agent, (0.01, mean), xycoords=("axes fraction", "data"), fontsize=7, va="bottom")
-    if plotted:
-        ax.set_xlabel("env steps")
-        ax.set_ylabel("normalized performance p̂")
-        ax.set_title(env_label, fontsize=9)
-        ax.legend(fontsize=7)
-        fig.tight_layout()
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return plotted
+        per_env = [{r["cell"]["seed"]: float(np.mean(r["final_normalized_performance"])) for r in table[e][agent]}
+                   for e in envs]
+        seeds = sorted(set.intersection(*(set(d) for d in per_env)))
+        if seeds:
+            out[agent] = np.array([[d[s] for d in per_env] for s in seeds])
+    return out
+
+
+def _png(plot_dir: Path, suite: str | None, what: str) -> Path:
+    return plot_dir / (f"{suite or 'all'}_" + re.sub(r"[^A-Za-z0-9_.-]+", "_", what) + ".png")
 
 
 def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str | None, plot_dir: Path | None,
-                    relative_to: Path) -> str:
+                    relative_to: Path, suite_config: dict[str, Any] | None = None) -> str:
     """The leaderboard document."""
-    commits = sorted({r["environment"].get("commit", "?") for r in results})
-    hw = results[0]["environment"] if results else {}
+    commits = sorted({r.get("environment", {}).get("commit", "?") for r in results})
+    hw = results[0].get("environment", {}) if results else {}
     lines = [
         "# Leaderboard",
         "",
@@ -107,22 +168,83 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
         "",
         "Each cell: final normalised performance p̂(H) over evaluation episodes (eval variants) × seeds — "
         "25th percentile, mean ± std, median, 75th percentile (the thesis table format) and the "
-        "interquartile mean with a 95% percentile-bootstrap CI. `expert` is the scripted oracle, "
-        "`random` uniform random actions. Budgets here are tiny (CPU smoke runs); the paper suites "
-        "(`benchmarks/configs/paper-*.json`) hold the full comparisons.",
+        "interquartile mean with a 95% stratified-bootstrap CI (rliable). Budget columns are what training "
+        "spent: steps in the training env, gradient updates, and demonstration transitions learnt from "
+        "(BC: epochs × dataset size in updates, no env steps). `expert` is the scripted oracle, `random` "
+        "uniform random actions, `zero` the all-zero action. Rows in *italics* are numbers reported "
+        "elsewhere (source under the table), not measured here.",
         "",
     ]
-    for env_label, agents in sorted(group_by_env(results).items()):
+    if (suite_config or {}).get("notes"):
+        lines += [str(suite_config["notes"]), ""]
+    table = group_by_env(results)
+    legacy = False
+    for env_label, agents in sorted(table.items()):
+        env_id = next(iter(agents.values()))[0]["cell"]["env_id"]
+        ref = references_for(suite_config, env_label, env_id)
+        ref_rows = dict(ref["rows"]) if ref else {}
         lines += [f"## {env_label}", "", HEADER, _sep()]
-        order = sorted(agents, key=lambda a: (a != "expert", a == "random", a))
+        order = sorted(agents, key=lambda a: (a != "expert", a in ("random", "zero"), a))
         for agent in order:
-            lines.append(agent_row(agent, agents[agent])[0])
-        if plot_dir is not None:
-            png = plot_dir / (f"{suite or 'all'}_" + re.sub(r'[^A-Za-z0-9_.-]+', '_', env_label) + ".png")
-            if plot_curves(env_label, agents, png):
-                lines += ["", f"![learning curves {env_label}]({os.path.relpath(png, relative_to)})"]
+            row = agent_row(agent, agents[agent])[0]
+            legacy |= "*" in row.split("|")[9]
+            lines.append(row)
+            if agent in ref_rows:
+                lines.append(reference_row(agent, ref["source"], ref_rows.pop(agent)))
+        for agent, numbers in ref_rows.items():
+            lines.append(reference_row(agent, ref["source"], numbers))
         lines.append("")
+        if ref:
+            lines += [f"Reference rows: {ref.get('source', 'unknown source')}.", ""]
+        notes = sorted({r["cell"].get("tags", {}).get("notes") for runs in agents.values() for r in runs} - {None})
+        lines += [f"Note: {n}" for n in notes] + ([""] if notes else [])
+        probs = improvement(agents)
+        if probs:
+            lines.append("Probability of improvement (rliable, episodes × seeds as runs): " + "; ".join(
+                f"P({IMPROVER} > {b}) = {p:.2f} [{lo:.2f}, {hi:.2f}]" for b, (p, lo, hi) in probs.items()))
+            lines.append("")
+        if plot_dir is not None:
+            images = []
+            png = _png(plot_dir, suite, env_label)
+            if plots.plot_curves(env_label, agents, png):
+                images.append(f"![learning curves {env_label}]({os.path.relpath(png, relative_to)})")
+            if probs:
+                png = _png(plot_dir, suite, f"{env_label}_improvement")
+                plots.plot_improvement(probs, IMPROVER, env_label, png)
+                images.append(f"![probability of improvement {env_label}]({os.path.relpath(png, relative_to)})")
+            if images:
+                lines += [" ".join(images), ""]
+    if legacy:
+        lines += ["\\* requested budget: these results were written before env steps were counted.", ""]
+    lines += _aggregate_section(table, suite, plot_dir, relative_to)
     return "\n".join(lines)
+
+
+def _aggregate_section(table: dict[str, dict[str, list[dict[str, Any]]]], suite: str | None,
+                       plot_dir: Path | None, relative_to: Path) -> list[str]:
+    if len(table) < 2:
+        return []
+    scores = seed_matrix(table)
+    if not scores:
+        return []
+    est = iqm_and_mean(scores)
+    lines = ["## Across environments", "",
+             f"Agents run on all {len(table)} environments; runs = seeds (per-seed mean p̂ on each env), "
+             "stratified-bootstrap 95% CIs (rliable).", "",
+             "| agent | runs × envs | IQM [95% CI] | mean [95% CI] |", "|---|---|---|---|"]
+    for agent, e in sorted(est.items(), key=lambda kv: -kv[1]["iqm"]):
+        lines.append(f"| {agent} | {scores[agent].shape[0]} × {scores[agent].shape[1]} | "
+                     f"{e['iqm']:.3f} [{e['iqm_ci_low']:.3f}, {e['iqm_ci_high']:.3f}] | "
+                     f"{e['mean']:.3f} [{e['mean_ci_low']:.3f}, {e['mean_ci_high']:.3f}] |")
+    lines.append("")
+    if plot_dir is not None:
+        taus = np.linspace(0.0, 1.0, 21)
+        profiles, cis = performance_profiles(scores, taus)
+        a = plots.plot_interval_estimates(est, _png(plot_dir, suite, "aggregate"))
+        b = plots.plot_profiles(profiles, cis, taus, _png(plot_dir, suite, "profiles"))
+        lines += [f"![IQM and mean]({os.path.relpath(a, relative_to)}) "
+                  f"![performance profiles]({os.path.relpath(b, relative_to)})", ""]
+    return lines
 
 
 def _sep() -> str:
@@ -130,13 +252,24 @@ def _sep() -> str:
 
 
 def write_leaderboard(results_dir: Path, out_path: Path, *, command: str, suite: str | None = None,
-                      plot_dir: Path | None = None) -> Path:
-    """Regenerate ``out_path`` from the results of ``suite`` (all suites if None)."""
+                      plot_dir: Path | None = None, suite_config: dict[str, Any] | None = None) -> Path:
+    """Regenerate ``out_path`` (atomically) from the results of ``suite`` (all suites if None).
+
+    ``suite_config`` (the suite JSON) supplies reference rows and notes; when omitted the
+    committed suite named ``suite`` is used if there is one.
+    """
     results = load_results(results_dir, suite)
     if not results:
         raise ValueError(f"no results found in {results_dir} for suite {suite!r}")
+    if suite_config is None and suite:
+        from benchmarks.run import load_suite
+
+        try:
+            suite_config = load_suite(suite)
+        except (ValueError, OSError):
+            suite_config = None
     out_path = Path(out_path)
     plot_dir = plot_dir or out_path.parent / "docs" / "leaderboard"
-    text = render_markdown(results, command=command, suite=suite, plot_dir=plot_dir, relative_to=out_path.parent)
-    out_path.write_text(text)
-    return out_path
+    text = render_markdown(results, command=command, suite=suite, plot_dir=plot_dir, relative_to=out_path.parent,
+                           suite_config=suite_config)
+    return atomic_write_text(out_path, text)

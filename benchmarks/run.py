@@ -10,7 +10,12 @@ Usage::
 A suite (``benchmarks/configs/<name>.json``) lists cells: an env id with its kwargs, the
 agents to run on it (name -> kwargs), a training budget (env steps), seeds and the number
 of evaluation episodes. Each (env, agent, seed) cell is trained, evaluated on the env's
-*eval* variants and saved as JSON; cells whose JSON exists are skipped (resume).
+*eval* variants and saved as JSON; cells whose JSON exists and reads back are skipped (resume);
+a corrupt one is reported by path and re-run.
+
+Cells run one after another (``--executor local``), in ``--jobs N`` local processes, or as
+tasks on a Ray cluster (``--executor ray --address HOST:PORT``); see :mod:`benchmarks.executors`.
+Expert demonstrations are cached under ``<out>/_demos`` (:mod:`benchmarks.demo_cache`).
 """
 
 from __future__ import annotations
@@ -49,6 +54,7 @@ class Cell:
     eval_episodes: int
     curve_points: int = 4
     tags: dict[str, Any] = field(default_factory=dict)
+    cpus: int = 1  #: CPU cores the cell asks a cluster scheduler for
 
     @property
     def key(self) -> str:
@@ -124,7 +130,8 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
                     budget=int(budget if budget is not None else spec.get("budget", suite.get("budget", 1000))),
                     eval_episodes=int(spec.get("eval_episodes", suite.get("eval_episodes", 10))),
                     curve_points=int(spec.get("curve_points", suite.get("curve_points", 4))),
-                    tags={"label": spec["label"]} if "label" in spec else {},
+                    tags={k: spec[k] for k in ("label", "notes") if k in spec},
+                    cpus=int(spec.get("cpus", suite.get("cpus", 1))),
                 ))
     return cells
 
@@ -174,18 +181,30 @@ def git_commit() -> str:
         return "unknown"
 
 
-def run_cell(cell: Cell, progress: bool = True) -> dict[str, Any]:
-    """Train ``cell.agent`` for ``cell.budget`` steps with a learning curve, then evaluate it."""
+def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) -> dict[str, Any]:
+    """Train ``cell.agent`` for ``cell.budget`` steps with a learning curve, then evaluate it.
+
+    ``demo_cache`` is the demonstration cache folder handed to the built-in demonstration
+    agents (default ``benchmarks/results/_demos``). The result records what training spent:
+    ``env_steps`` (steps in the training env), ``gradient_updates`` and ``demo_transitions``.
+    """
     import gymnasium as gym
     from tqdm import tqdm
 
     from benchmarks.agents import resolve_agent
+    from benchmarks.budget import StepCounter, spent
 
+    import lfd_envs  # noqa: F401  (registers the ids; a worker process starts without them)
+
+    module = cell.env_id.rpartition(":")[0]
+    if module:
+        importlib.import_module(module)
     factory = resolve_agent(cell.agent)
-    env = gym.make(cell.env_id, **cell.env_kwargs)
+    env = StepCounter(gym.make(cell.env_id, **cell.env_kwargs))
     eval_env = gym.make(cell.env_id, **cell.env_kwargs)
+    extra = {"demo_cache": str(demo_cache)} if demo_cache is not None and getattr(factory, "uses_demo_cache", False) else {}
     t0 = time.perf_counter()
-    agent = factory(env, cell.seed, **cell.agent_kwargs)
+    agent = factory(env, cell.seed, **cell.agent_kwargs, **extra)
     curve: list[dict[str, float]] = []
     trains = getattr(agent, "needs_training", True)
     points = max(1, cell.curve_points) if trains else 0
@@ -212,6 +231,7 @@ def run_cell(cell: Cell, progress: bool = True) -> dict[str, Any]:
         "train_wall_time_s": train_time,
         "eval_wall_time_s": eval_time,
         "trained_steps": done_steps if trains else 0,
+        **spent(agent, env),
         "environment": environment_info(),
         "finished_at": time.strftime("%Y-%m-%d %H:%M:%S"),
     }
@@ -226,21 +246,35 @@ def _accepts_reset(agent: Any) -> bool:
         return False
 
 
-def run_grid(cells: list[Cell], out: Path, progress: bool = True, force: bool = False) -> list[Path]:
-    """Run every cell whose JSON is missing (all with ``force``); return the result paths."""
-    from tqdm import tqdm
+def run_grid(cells: list[Cell], out: Path, progress: bool = True, force: bool = False, *, executor: str = "local",
+             jobs: int = 1, address: str | None = None) -> list[Path]:
+    """Run every cell whose JSON is missing or corrupt (all with ``force``); return the result paths.
 
-    paths = []
-    for cell in tqdm(cells, desc="cells", disable=not progress, file=sys.stderr):
+    Raises :class:`benchmarks.executors.CellsFailed` after the other cells finished if any
+    cell failed (their results are written all the same).
+    """
+    from benchmarks.demo_cache import CACHE_DIRNAME
+    from benchmarks.executors import run_cells
+    from benchmarks.storage import CorruptResult, check_writable, read_result, write_result
+
+    out = check_writable(out)
+    paths, todo = [], []
+    for cell in cells:
         path = out / f"{cell.key}.json"
         paths.append(path)
         if path.exists() and not force:
-            continue
-        result = run_cell(cell, progress=progress)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(".tmp")
-        tmp.write_text(json.dumps(result, indent=1))
-        tmp.replace(path)  # atomic: an interrupted run never leaves a half-written cell
+            try:
+                read_result(path)
+                continue
+            except CorruptResult as exc:
+                print(f"warning: {exc}; running the cell again", file=sys.stderr)
+        todo.append(cell)
+
+    def done(cell: Cell, result: dict[str, Any]) -> None:
+        write_result(out / f"{cell.key}.json", result)  # atomic: a kill never leaves half a file
+
+    run_cells(todo, done, executor=executor, jobs=jobs, address=address, demo_cache=out / CACHE_DIRNAME,
+              progress=progress)
     return paths
 
 
@@ -257,6 +291,14 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--out", default=str(DEFAULT_OUT), help="results folder (one JSON per cell)")
     p.add_argument("--leaderboard", default=str(ROOT / "leaderboard.md"), help="markdown file to rewrite")
     p.add_argument("--force", action="store_true", help="re-run finished cells")
+    p.add_argument("--executor", choices=["local", "ray"], default="local",
+                   help="local: this machine (see --jobs); ray: one task per cell on a Ray cluster")
+    p.add_argument("--jobs", type=int, default=1, help="local executor: cells run in parallel processes")
+    p.add_argument("--address", help="ray executor: cluster address (as printed by `ray start --head`); "
+                                     "default: start a local Ray instance")
+    p.add_argument("--preflight", action="store_true",
+                   help="only check that every (env, agent) pair runs: tiny budgets, results in a temporary "
+                        "folder, no leaderboard (minutes instead of hours)")
     p.add_argument("--no-progress", action="store_true")
     return p.parse_args(argv)
 
@@ -272,11 +314,55 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    from benchmarks.executors import CellsFailed
+    from benchmarks.storage import check_writable
+
     out = Path(args.out)
-    run_grid(cells, out, progress=not args.no_progress, force=args.force)
+    try:
+        if args.jobs < 1:
+            raise ValueError(f"--jobs must be >= 1, got {args.jobs}")
+        if args.address and args.executor != "ray":
+            raise ValueError("--address needs --executor ray")
+        check_writable(out)  # refuse before any training, not after the first cell
+        check_writable(Path(args.leaderboard).parent)
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if args.preflight:
+        return preflight(cells, args)
+    code = 0
+    try:
+        run_grid(cells, out, progress=not args.no_progress, force=args.force, executor=args.executor,
+                 jobs=args.jobs, address=args.address)
+    except CellsFailed as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        code = 1
     command = "python -m benchmarks.run " + " ".join(argv if argv is not None else sys.argv[1:])
-    path = write_leaderboard(out, Path(args.leaderboard), command=command, suite=suite["name"])
+    try:
+        path = write_leaderboard(out, Path(args.leaderboard), command=command, suite=suite["name"], suite_config=suite)
+    except ValueError as exc:  # no finished cell of this suite yet
+        print(f"error: {exc}", file=sys.stderr)
+        return code or 1
     print(f"wrote {path}")
+    return code
+
+
+def preflight(cells: list[Cell], args: argparse.Namespace) -> int:
+    """Run the tiny version of every distinct cell (:mod:`benchmarks.preflight`); 0 if all ran."""
+    import tempfile
+
+    from benchmarks.executors import CellsFailed
+    from benchmarks.preflight import preflight_cells
+
+    tiny = preflight_cells(cells)
+    with tempfile.TemporaryDirectory(prefix="lfd-preflight-") as tmp:
+        try:
+            run_grid(tiny, Path(tmp), progress=not args.no_progress, force=True, executor=args.executor,
+                     jobs=args.jobs, address=args.address)
+        except CellsFailed as exc:
+            print(f"preflight: {exc}", file=sys.stderr)
+            return 1
+    print(f"preflight: all {len(tiny)} (env, agent) pairs ran")
     return 0
 
 

@@ -1,40 +1,89 @@
-"""Statistics for the leaderboard: thesis-style percentiles and rliable-style IQM with CIs."""
+"""Statistics for the leaderboard.
+
+* The thesis table: 25th percentile, mean ± std, median and 75th percentile of the final
+  normalised performance p̂(H) over evaluation episodes × seeds (plain numpy).
+* Interval estimates from ``rliable``: interquartile mean (IQM) and mean with
+  stratified-bootstrap 95% confidence intervals, performance profiles and the probability of
+  improvement. Score matrices follow rliable's convention: shape ``(runs, tasks)``.
+
+Bootstraps use a fixed seed, so a leaderboard regenerated from the same results is identical.
+"""
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import asdict, dataclass
+from typing import Callable, Mapping
 
 import numpy as np
 
-
-def iqm(values: np.ndarray) -> float:
-    """Interquartile mean: mean of the middle 50% of the sorted values.
-
-    Uses the trimmed-mean definition of rliable (25% cut from each end, fractional
-    observations weighted), which equals the plain mean for n < 4 only when no cut applies.
-    """
-    x = np.sort(np.asarray(values, dtype=np.float64).ravel())
-    n = x.size
-    if n == 0:
-        raise ValueError("iqm of an empty array")
-    lo, hi = 0.25 * n, 0.75 * n
-    # weight of each sorted sample inside [lo, hi)
-    idx = np.arange(n)
-    w = np.clip(np.minimum(idx + 1, hi) - np.maximum(idx, lo), 0.0, 1.0)
-    return float(np.sum(w * x) / np.sum(w))
+#: bootstrap replications for every interval (rliable's default of 50000 is minutes per table)
+REPS = 2000
+#: replications of the probability of improvement (a Mann-Whitney statistic per replication: slower)
+POI_REPS = 1000
+SEED = 0
 
 
-def bootstrap_ci(values: np.ndarray, statistic=iqm, confidence: float = 0.95, n_boot: int = 2000,
-                 seed: int = 0) -> tuple[float, float]:
-    """Percentile bootstrap confidence interval of ``statistic`` (fixed seed: reproducible)."""
-    x = np.asarray(values, dtype=np.float64).ravel()
-    if x.size == 0:
-        raise ValueError("bootstrap of an empty array")
-    rng = np.random.default_rng(seed)
-    samples = x[rng.integers(0, x.size, size=(n_boot, x.size))]
-    stats = np.array([statistic(s) for s in samples])
-    alpha = (1.0 - confidence) / 2
-    return float(np.quantile(stats, alpha)), float(np.quantile(stats, 1 - alpha))
+def _rliable():
+    from rliable import library as rly
+    from rliable import metrics
+
+    return rly, metrics
+
+
+def _scores(values: np.ndarray) -> np.ndarray:
+    x = np.asarray(values, dtype=np.float64)
+    if x.ndim == 1:
+        x = x[:, None]
+    if x.ndim != 2 or x.size == 0:
+        raise ValueError(f"scores must be a non-empty (runs, tasks) array, got shape {x.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("scores must be finite")
+    return x
+
+
+def interval_estimates(score_dict: Mapping[str, np.ndarray], func: Callable[[np.ndarray], np.ndarray]
+                       ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """rliable point estimates and stratified-bootstrap 95% CIs of ``func`` for each entry."""
+    rly, _ = _rliable()
+    scores = {k: _scores(v) for k, v in score_dict.items()}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)  # arch's RandomState deprecation notice
+        warnings.simplefilter("ignore", RuntimeWarning)  # degenerate (constant) bootstrap samples
+        return rly.get_interval_estimates(scores, func, reps=REPS, random_state=np.random.RandomState(SEED))
+
+
+def iqm_and_mean(score_dict: Mapping[str, np.ndarray]) -> dict[str, dict[str, float]]:
+    """``{name: {iqm, iqm_ci_low, iqm_ci_high, mean, mean_ci_low, mean_ci_high}}`` (rliable)."""
+    _, metrics = _rliable()
+    point, ci = interval_estimates(
+        score_dict, lambda x: np.array([metrics.aggregate_iqm(x), metrics.aggregate_mean(x)]))
+    return {k: {"iqm": float(point[k][0]), "iqm_ci_low": float(ci[k][0, 0]), "iqm_ci_high": float(ci[k][1, 0]),
+                "mean": float(point[k][1]), "mean_ci_low": float(ci[k][0, 1]), "mean_ci_high": float(ci[k][1, 1])}
+            for k in point}
+
+
+def probability_of_improvement(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
+    """P(X > Y) of rliable (Mann-Whitney statistic averaged over tasks) with its 95% CI."""
+    rly, metrics = _rliable()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        warnings.simplefilter("ignore", RuntimeWarning)
+        point, ci = rly.get_interval_estimates({"pair": [_scores(x), _scores(y)]}, metrics.probability_of_improvement,
+                                               reps=POI_REPS, random_state=np.random.RandomState(SEED))
+    return float(np.ravel(point["pair"])[0]), float(np.ravel(ci["pair"])[0]), float(np.ravel(ci["pair"])[-1])
+
+
+def performance_profiles(score_dict: Mapping[str, np.ndarray], taus: np.ndarray
+                         ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Fraction of runs with score > τ for each τ, with stratified-bootstrap CIs (rliable)."""
+    rly, _ = _rliable()
+    scores = {k: _scores(v) for k, v in score_dict.items()}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        warnings.simplefilter("ignore", RuntimeWarning)
+        np.random.seed(SEED)  # create_performance_profile takes no random_state
+        return rly.create_performance_profile(scores, taus, reps=REPS)
 
 
 @dataclass
@@ -50,17 +99,22 @@ class Summary:
     iqm: float
     iqm_ci_low: float
     iqm_ci_high: float
+    mean_ci_low: float
+    mean_ci_high: float
 
     def as_dict(self) -> dict[str, float]:
         return asdict(self)
 
 
 def summarize(values: np.ndarray) -> Summary:
-    """All leaderboard statistics of ``values``."""
+    """Thesis percentiles (numpy) and IQM / mean with bootstrap CIs (rliable) of ``values``.
+
+    The values (episodes × seeds of one agent on one env) are treated as runs of one task.
+    """
     x = np.asarray(values, dtype=np.float64).ravel()
     if x.size == 0:
         raise ValueError("cannot summarise an empty set of results")
-    lo, hi = bootstrap_ci(x)
+    est = iqm_and_mean({"x": x})["x"]
     return Summary(
         n=int(x.size),
         p25=float(np.percentile(x, 25)),
@@ -68,7 +122,9 @@ def summarize(values: np.ndarray) -> Summary:
         std=float(np.std(x)),
         median=float(np.median(x)),
         p75=float(np.percentile(x, 75)),
-        iqm=iqm(x),
-        iqm_ci_low=lo,
-        iqm_ci_high=hi,
+        iqm=est["iqm"],
+        iqm_ci_low=est["iqm_ci_low"],
+        iqm_ci_high=est["iqm_ci_high"],
+        mean_ci_low=est["mean_ci_low"],
+        mean_ci_high=est["mean_ci_high"],
     )

@@ -9,7 +9,7 @@ import pytest
 
 from benchmarks import run as bench
 from benchmarks.agents import resolve_agent
-from benchmarks.stats import bootstrap_ci, iqm, summarize
+from benchmarks.stats import iqm_and_mean, probability_of_improvement, summarize
 
 README = Path(__file__).resolve().parent.parent / "README.md"
 
@@ -26,17 +26,28 @@ def third_party_factory(env, seed, **kwargs):
     return Agent()
 
 
-def test_stats_match_numpy():
+@pytest.fixture(autouse=True)
+def fast_bootstrap(request, monkeypatch):
+    """Fewer bootstrap replications in harness tests (the statistics test keeps the defaults)."""
+    from benchmarks import stats
+
+    if "stats" not in request.node.name:
+        monkeypatch.setattr(stats, "REPS", 200)
+        monkeypatch.setattr(stats, "POI_REPS", 100)
+
+
+def test_stats_match_numpy_and_rliable():
     x = np.arange(20, dtype=float)
     s = summarize(x)
     assert s.p25 == np.percentile(x, 25) and s.p75 == np.percentile(x, 75)
     assert s.mean == x.mean() and s.std == x.std() and s.median == np.median(x)
-    assert iqm(x) == pytest.approx(np.mean(x[5:15]))
-    assert iqm(np.arange(8.0)) == pytest.approx(3.5)
-    lo, hi = bootstrap_ci(x)
-    assert lo <= iqm(x) <= hi
-    lo2, hi2 = bootstrap_ci(np.tile(x, 10))
-    assert hi2 - lo2 < hi - lo
+    assert s.iqm == pytest.approx(np.mean(x[5:15]))
+    assert s.iqm_ci_low <= s.iqm <= s.iqm_ci_high and s.mean_ci_low <= s.mean <= s.mean_ci_high
+    wide = iqm_and_mean({"x": x})["x"]
+    narrow = iqm_and_mean({"x": np.tile(x, 10)})["x"]
+    assert narrow["iqm_ci_high"] - narrow["iqm_ci_low"] < wide["iqm_ci_high"] - wide["iqm_ci_low"]
+    p, lo, hi = probability_of_improvement(x + 100, x)
+    assert p == 1.0 and lo == hi == 1.0
 
 
 def _suite(tmp_path):
@@ -100,3 +111,132 @@ def test_readme_third_party_example_runs(tmp_path, monkeypatch):
     assert bench.main(["--suite", str(tmp_path / "s.json"), "--agent", "my_agents:make_agent", "--out", str(out),
                        "--leaderboard", str(tmp_path / "lb.md"), "--no-progress"]) == 0
     assert "my_agents:make_agent" in (tmp_path / "lb.md").read_text()
+
+
+# ---------------------------------------------------------------------- crash safety and budgets
+THREE_BOXES = {"num_pickers": 1, "action_mode": "pick_place", "obs_mode": "state"}
+
+
+def _bc_suite(tmp_path, **extra):
+    suite = {"name": "bcs", "seeds": [0], "eval_episodes": 2, "budget": 5, "curve_points": 1,
+             "cells": [{"env": "ThreeBoxes-v0", "env_kwargs": THREE_BOXES, "label": "pp",
+                        "agents": {"bc": {"demo_episodes": 2, "n_epochs": 3, "batch_size": 4}, "random": {}},
+                        **extra}]}
+    path = tmp_path / "bcs.json"
+    path.write_text(json.dumps(suite))
+    return path
+
+
+def _args(suite, tmp_path, *more):
+    return ["--suite", str(suite), "--out", str(tmp_path / "res"), "--leaderboard", str(tmp_path / "lb.md"),
+            "--no-progress", *more]
+
+
+def test_demo_cache_under_out_rebuilt_when_broken_and_budgets_recorded(tmp_path, capsys):
+    suite = _bc_suite(tmp_path)
+    assert bench.main(_args(suite, tmp_path)) == 0
+    cache = tmp_path / "res" / "_demos"
+    h5 = sorted(cache.rglob("*.hdf5"))
+    assert len(h5) == 1, "the demonstration cache lives under --out"
+    assert not list(cache.glob(".*tmp*")), "no temporary collection folder left behind"
+    bc = json.loads((tmp_path / "res" / "bcs" / "ThreeBoxes-v0__pp" / "bc" / "seed0.json").read_text())
+    n = bc["demo_transitions"]
+    assert n == 2 * 3  # two pick_place episodes of horizon 3
+    assert bc["env_steps"] == 0 and bc["gradient_updates"] == 3 * int(np.ceil(n / 4))
+    row = next(l for l in (tmp_path / "lb.md").read_text().splitlines() if l.startswith("| bc |"))
+    cols = [c.strip() for c in row.split("|")]
+    assert cols[9:12] == ["0", str(3 * int(np.ceil(n / 4))), str(n)]
+
+    h5[0].write_bytes(h5[0].read_bytes()[:200])  # a kill while Minari wrote the file
+    with pytest.warns(UserWarning, match=re.escape(str(h5[0].parent.parent.parent))):
+        assert bench.main(_args(suite, tmp_path, "--force")) == 0
+    assert json.loads((tmp_path / "res" / "bcs" / "ThreeBoxes-v0__pp" / "bc" / "seed0.json").read_text())[
+        "demo_transitions"] == n
+    # the demonstration cache's Minari metadata.json files are not results
+    from benchmarks.leaderboard import write_leaderboard
+
+    assert list(cache.rglob("metadata.json"))
+    write_leaderboard(tmp_path / "res", tmp_path / "all.md", command="x", suite=None)
+    assert "ThreeBoxes-v0 (pp)" in (tmp_path / "all.md").read_text()
+
+
+def test_corrupt_cell_json_is_named_and_rerun(tmp_path, capsys):
+    suite = _suite(tmp_path)
+    args = ["--suite", str(suite), "--out", str(tmp_path / "res"), "--leaderboard", str(tmp_path / "lb.md"),
+            "--no-progress"]
+    assert bench.main(args) == 0
+    victim = next((tmp_path / "res").rglob("random/seed0.json"))
+    victim.write_text(victim.read_text()[:40])  # truncated by a kill
+    capsys.readouterr()
+    assert bench.main(args) == 0
+    err = capsys.readouterr().err
+    assert str(victim) in err and "running the cell again" in err
+    assert len(json.loads(victim.read_text())["final_normalized_performance"]) == 6
+    # the leaderboard step names a corrupt file instead of crashing
+    victim.write_text("{")
+    from benchmarks.leaderboard import load_results
+
+    assert len(load_results(tmp_path / "res", "tiny")) == 1
+    assert str(victim) in capsys.readouterr().err
+
+
+def test_unwritable_out_refused_before_training(tmp_path, capsys, monkeypatch):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    monkeypatch.setattr(bench, "run_cell", lambda *a, **k: pytest.fail("trained despite an unwritable --out"))
+    assert bench.main(["--suite", str(_suite(tmp_path)), "--out", str(blocker / "res"), "--no-progress",
+                       "--leaderboard", str(tmp_path / "lb.md")]) == 2
+    assert f"cannot write to {blocker / 'res'}" in capsys.readouterr().err
+
+
+def test_leaderboard_written_atomically(tmp_path, monkeypatch):
+    from benchmarks import leaderboard
+
+    suite = _suite(tmp_path)
+    args = ["--suite", str(suite), "--out", str(tmp_path / "res"), "--leaderboard", str(tmp_path / "lb.md"),
+            "--no-progress"]
+    assert bench.main(args) == 0
+    before = (tmp_path / "lb.md").read_text()
+
+    def killed(*a, **k):
+        raise KeyboardInterrupt  # a kill while the document is produced
+
+    monkeypatch.setattr(leaderboard, "render_markdown", killed)
+    with pytest.raises(KeyboardInterrupt):
+        leaderboard.write_leaderboard(tmp_path / "res", tmp_path / "lb.md", command="x", suite="tiny")
+    assert (tmp_path / "lb.md").read_text() == before
+    monkeypatch.undo()
+    from benchmarks.storage import atomic_write_text
+
+    def half_written(tmp):
+        tmp.write_text("half")
+        raise KeyboardInterrupt
+
+    from benchmarks.storage import atomic_write
+
+    with pytest.raises(KeyboardInterrupt):
+        atomic_write(tmp_path / "lb.md", half_written)
+    assert (tmp_path / "lb.md").read_text() == before
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
+    atomic_write_text(tmp_path / "lb.md", "new")
+    assert (tmp_path / "lb.md").read_text() == "new"
+
+
+def test_reference_rows_and_notes(tmp_path):
+    suite = json.loads(_suite(tmp_path).read_text())
+    suite["notes"] = "Widths cut to 64 for a CPU."
+    suite["cells"][0]["notes"] = "budget 20 steps instead of 1M"
+    suite["reference"] = {"lfd_test/PointReach-v0": {"source": "thesis Table 4.1", "rows": {
+        "random": {"mean": 0.111, "std": 0.022, "p25": 0.05, "median": 0.1, "p75": 0.2},
+        "dmfd": {"mean": 0.9}}}}
+    path = tmp_path / "ref.json"
+    path.write_text(json.dumps(suite))
+    assert bench.main(["--suite", str(path), "--out", str(tmp_path / "res"), "--leaderboard",
+                       str(tmp_path / "lb.md"), "--no-progress"]) == 0
+    lines = (tmp_path / "lb.md").read_text().splitlines()
+    i = next(k for k, l in enumerate(lines) if l.startswith("| random |"))
+    assert lines[i + 1].startswith("| *thesis: random* |") and "0.111 ± 0.022" in lines[i + 1]
+    assert "| 0.050 |" in lines[i + 1] and "| 0.200 |" in lines[i + 1]
+    assert any(l.startswith("| *thesis: dmfd* |") and "0.900" in l for l in lines)
+    assert "Reference rows: thesis Table 4.1." in lines
+    assert "Widths cut to 64 for a CPU." in lines and "Note: budget 20 steps instead of 1M" in lines

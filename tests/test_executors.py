@@ -1,0 +1,77 @@
+"""Executors: local processes and a Ray instance run cells into the same layout, resume, retry dead workers."""
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from benchmarks import run as bench
+from benchmarks.storage import read_result, result_files
+
+
+class GoalAgent:
+    """Moves straight to the toy env's goal (reads its state observation)."""
+
+    def learn(self, total_timesteps, **_):
+        return self
+
+    def predict(self, obs, deterministic=True):
+        return np.clip((obs[2:] - obs[:2]) / 0.1, -1, 1), None
+
+
+def dies_once(env, seed, marker, **kwargs):
+    """A factory whose worker process dies the first time (``marker`` file records the attempt)."""
+    path = Path(marker)
+    if not path.exists():
+        path.write_text("died once")
+        os._exit(3)  # like an OOM kill: no exception, the process is gone
+    return GoalAgent()
+
+
+def _suite(tmp_path, marker):
+    suite = {"name": "exec", "seeds": [0, 1], "eval_episodes": 2, "budget": 4, "curve_points": 1,
+             "cells": [{"env": "toy_env:lfd_test/PointReach-v0", "cpus": 1,
+                        "agents": {"random": {}, f"{__name__}:dies_once": {"marker": str(marker)}}}]}
+    return bench.expand_cells(suite)
+
+
+def _check_layout(out, cells):
+    files = result_files(out, "exec")
+    assert sorted(f.relative_to(out).as_posix() for f in files) == sorted(f"{c.key}.json" for c in cells)
+    for f in files:
+        r = read_result(f)
+        assert len(r["final_normalized_performance"]) == 2
+        assert r["env_steps"] == 0 and r["gradient_updates"] == 0
+    return files
+
+
+def test_local_processes_run_resume_and_retry_dead_worker(tmp_path):
+    cells = _suite(tmp_path, tmp_path / "marker")
+    out = tmp_path / "res"
+    bench.run_grid(cells, out, progress=False, executor="local", jobs=2)
+    assert (tmp_path / "marker").exists()  # a worker died once, its cell was retried
+    files = _check_layout(out, cells)
+    mtimes = [f.stat().st_mtime_ns for f in files]
+    bench.run_grid(cells, out, progress=False, executor="local", jobs=2)  # resume: nothing re-run
+    assert [f.stat().st_mtime_ns for f in files] == mtimes
+
+
+def test_ray_executor_runs_a_tiny_suite(tmp_path):
+    ray = pytest.importorskip("ray", reason="ray is not installed (pip install 'lfd[cluster]')")
+    cells = _suite(tmp_path, tmp_path / "marker")
+    out = tmp_path / "res"
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,
+             runtime_env={"env_vars": {"PYTHONPATH": os.pathsep.join([str(Path(__file__).parent),
+                                                                       os.environ.get("PYTHONPATH", "")])}})
+    try:
+        bench.run_grid(cells, out, progress=False, executor="ray")
+        assert (tmp_path / "marker").exists()  # the dead worker's task was retried by Ray
+        files = _check_layout(out, cells)
+        json.loads(files[0].read_text())
+        mtimes = [f.stat().st_mtime_ns for f in files]
+        bench.run_grid(cells, out, progress=False, executor="ray")  # resume
+        assert [f.stat().st_mtime_ns for f in files] == mtimes
+    finally:
+        ray.shutdown()
