@@ -81,7 +81,8 @@ def _budget(runs: list[dict[str, Any]], key: str) -> str:
     if len(values) == len(runs):
         return _fmt_count(float(np.mean(values)))
     if key == "env_steps":
-        return f"{_fmt_count(float(np.mean([r.get('trained_steps', 0) for r in runs])))}*"
+        requested = float(np.mean([r.get("trained_steps", 0) for r in runs]))
+        return f"{_fmt_count(requested)}*" if requested else "0"
     return "?"
 
 

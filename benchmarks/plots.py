@@ -88,8 +88,10 @@ def plot_interval_estimates(estimates: Mapping[str, Mapping[str, float]], path: 
     point = {a: np.array([estimates[a]["iqm"], estimates[a]["mean"]]) for a in algorithms}
     ci = {a: np.array([[estimates[a]["iqm_ci_low"], estimates[a]["mean_ci_low"]],
                        [estimates[a]["iqm_ci_high"], estimates[a]["mean_ci_high"]]]) for a in algorithms}
+    row_height = 0.5  # inches per algorithm; the x label goes 0.45 inch below the axes
     fig, _ = plot_utils.plot_interval_estimates(point, ci, metric_names=["IQM", "Mean"], algorithms=algorithms,
-                                                xlabel="normalized performance p̂")
+                                                xlabel="normalized performance p̂", row_height=row_height,
+                                                xlabel_y_coordinate=-0.45 / (row_height * len(algorithms)))
     return save_figure(fig, path)
 
 

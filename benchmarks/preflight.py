@@ -23,13 +23,17 @@ TINY_AGENT_KWARGS: dict[str, dict[str, Any]] = {
     "sac_lfd": {"demo_episodes": 1, "learning_starts": 0, "batch_size": 4, "buffer_size": 1000},
     "awac": {"demo_episodes": 1, "learning_starts": 0, "batch_size": 4, "buffer_size": 1000, "offline_steps": 4},
     "bc": {"demo_episodes": 1, "n_epochs": 1, "batch_size": 4},
-    "mopa_sac": {"learning_starts": 1, "batch_size": 4, "buffer_size": 1000},
+    "mopa_sac": {"learning_starts": 0, "batch_size": 4, "buffer_size": 1000},
     "mail": {"teacher_episodes": 1, "population": 4, "simulator_worlds": 4, "random_transitions": 8,
              "dynamics_epochs": 1, "batch_size": 4, "buffer_size": 1000},
     "nist_bc": {"n_demos": 1, "batch_size": 2},
     "nist_bc_h6": {"n_demos": 1, "batch_size": 2},
     "nist_bc_1cam": {"n_demos": 1, "batch_size": 2},
 }
+
+#: agents whose budget counts something finer than their own steps (MoPA: low-level steps, one
+#: planned MoPA action may execute dozens) get this many, so that they reach a gradient update
+TINY_BUDGETS: dict[str, int] = {"mopa_sac": 200}
 
 #: any of these a suite sets is capped to this value (whatever agent it belongs to)
 CAPS: dict[str, int] = {"offline_steps": 4, "n_epochs": 1, "demo_episodes": 1, "teacher_episodes": 1, "n_demos": 1,
@@ -47,7 +51,7 @@ def shrink(cell: Any, steps: int = 4, episode_steps: int | None = 10) -> Any:
     agent_kwargs = {k: (min(v, CAPS[k]) if k in CAPS and isinstance(v, int) else v)
                     for k, v in cell.agent_kwargs.items()}
     agent_kwargs.update(TINY_AGENT_KWARGS.get(cell.agent, {}))
-    return dataclasses.replace(cell, budget=int(steps), eval_episodes=1, curve_points=1, env_kwargs=env_kwargs,
+    return dataclasses.replace(cell, budget=max(int(steps), TINY_BUDGETS.get(cell.agent, 0)), eval_episodes=1, curve_points=1, env_kwargs=env_kwargs,
                                agent_kwargs=agent_kwargs, suite=f"{cell.suite}-preflight")
 
 
