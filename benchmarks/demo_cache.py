@@ -58,6 +58,18 @@ def validate(path: Path, episodes: int) -> Demonstrations:
     return Demonstrations(path=Path(path), episodes=len(eps), transitions=int(sum(len(ep) for ep in eps)))
 
 
+def _remove_abandoned(cache_dir: Path, key: str) -> None:
+    """Delete temporary collection folders of ``key`` left by killed processes of this machine."""
+    for tmp in cache_dir.glob(f".{key}.tmp-*"):
+        try:
+            pid = int(tmp.name.split(".tmp-", 1)[1].split("-", 1)[0])
+            os.kill(pid, 0)  # raises if no such process
+        except ProcessLookupError:
+            shutil.rmtree(tmp, ignore_errors=True)
+        except (ValueError, PermissionError):
+            pass  # not ours to judge
+
+
 def demonstrations_for(env: gym.Env, episodes: int, cache_dir: str | os.PathLike, seed: int = 0) -> Demonstrations:
     """Expert demonstrations for ``env``'s id and kwargs from ``cache_dir`` (collected on a miss).
 
@@ -87,6 +99,7 @@ def demonstrations_for(env: gym.Env, episodes: int, cache_dir: str | os.PathLike
             warnings.warn(f"demonstration cache {root} is broken ({exc}); collecting it again", stacklevel=2)
             shutil.rmtree(root, ignore_errors=True)
     cache_dir.mkdir(parents=True, exist_ok=True)
+    _remove_abandoned(cache_dir, root.name)
     tmp = cache_dir / f".{root.name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}"
     try:
         written = datasets.collect(spec.id, int(episodes), tmp, env_kwargs=kwargs, seed=seed + 500_000,

@@ -153,8 +153,10 @@ def _png(plot_dir: Path, suite: str | None, what: str) -> Path:
 
 
 def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str | None, plot_dir: Path | None,
-                    relative_to: Path, suite_config: dict[str, Any] | None = None) -> str:
-    """The leaderboard document."""
+                    relative_to: Path, suite_config: dict[str, Any] | None = None, progress: bool = False) -> str:
+    """The leaderboard document (``progress``: a bar over the envs, whose bootstraps take seconds each)."""
+    from tqdm import tqdm
+
     commits = sorted({r.get("environment", {}).get("commit", "?") for r in results})
     hw = results[0].get("environment", {}) if results else {}
     lines = [
@@ -171,7 +173,7 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
         "25th percentile, mean ± std, median, 75th percentile (the thesis table format) and the "
         "interquartile mean with a 95% stratified-bootstrap CI (rliable). Budget columns are what training "
         "spent: steps in the training env, gradient updates, and demonstration transitions learnt from "
-        "(BC: epochs × dataset size in updates, no env steps). `expert` is the scripted oracle, `random` "
+        "(BC: epochs × ⌈dataset size / batch size⌉ updates, no env steps). `expert` is the scripted oracle, `random` "
         "uniform random actions, `zero` the all-zero action. Rows in *italics* are numbers reported "
         "elsewhere (source under the table), not measured here.",
         "",
@@ -180,7 +182,8 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
         lines += [str(suite_config["notes"]), ""]
     table = group_by_env(results)
     legacy = False
-    for env_label, agents in sorted(table.items()):
+    for env_label, agents in tqdm(sorted(table.items()), desc="leaderboard", disable=not progress, leave=False,
+                                  file=sys.stderr):
         env_id = next(iter(agents.values()))[0]["cell"]["env_id"]
         ref = references_for(suite_config, env_label, env_id)
         ref_rows = dict(ref["rows"]) if ref else {}
@@ -253,7 +256,8 @@ def _sep() -> str:
 
 
 def write_leaderboard(results_dir: Path, out_path: Path, *, command: str, suite: str | None = None,
-                      plot_dir: Path | None = None, suite_config: dict[str, Any] | None = None) -> Path:
+                      plot_dir: Path | None = None, suite_config: dict[str, Any] | None = None,
+                      progress: bool = False) -> Path:
     """Regenerate ``out_path`` (atomically) from the results of ``suite`` (all suites if None).
 
     ``suite_config`` (the suite JSON) supplies reference rows and notes; when omitted the
@@ -272,5 +276,5 @@ def write_leaderboard(results_dir: Path, out_path: Path, *, command: str, suite:
     out_path = Path(out_path)
     plot_dir = plot_dir or out_path.parent / "docs" / "leaderboard"
     text = render_markdown(results, command=command, suite=suite, plot_dir=plot_dir, relative_to=out_path.parent,
-                           suite_config=suite_config)
+                           suite_config=suite_config, progress=progress)
     return atomic_write_text(out_path, text)

@@ -80,9 +80,49 @@ def load_suite(name: str) -> dict[str, Any]:
         path = CONFIGS / f"{name}.json"
     if not path.exists():
         raise ValueError(f"unknown suite {name!r}; valid suites are {available_suites()} or a path to a .json file")
-    suite = json.loads(path.read_text())
+    try:
+        suite = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"suite {path} is not valid JSON: {exc}") from exc
     suite.setdefault("name", path.stem)
+    check_suite(suite, path)
     return suite
+
+
+_STATS = ("mean", "std", "p25", "median", "p75")
+
+
+def check_suite(suite: dict[str, Any], path: Path | str = "suite") -> None:
+    """Raise ``ValueError`` naming ``path`` and the entry if the suite's shape is wrong (before any training)."""
+    def bad(what: str) -> ValueError:
+        return ValueError(f"{path}: {what}")
+
+    if not isinstance(suite.get("cells"), list) or not suite["cells"]:
+        raise bad("needs a non-empty list 'cells'")
+    if "notes" in suite and not isinstance(suite["notes"], str):
+        raise bad("'notes' must be a string")
+    for i, spec in enumerate(suite["cells"]):
+        if not isinstance(spec, dict) or "env" not in spec:
+            raise bad(f"cells[{i}] needs an 'env'")
+        if "notes" in spec and not isinstance(spec["notes"], str):
+            raise bad(f"cells[{i}].notes must be a string")
+        cpus = spec.get("cpus", suite.get("cpus", 1))
+        if not isinstance(cpus, int) or isinstance(cpus, bool) or cpus < 1:
+            raise bad(f"cells[{i}].cpus must be an integer >= 1, got {cpus!r}")
+    refs = suite.get("reference", {})
+    if not isinstance(refs, dict):
+        raise bad("'reference' must map env ids to {source, rows}")
+    for env, ref in refs.items():
+        if not isinstance(ref, dict) or not isinstance(ref.get("source"), str) or not isinstance(ref.get("rows"), dict):
+            raise bad(f"reference[{env!r}] needs a 'source' string and a 'rows' object {{agent: {{{', '.join(_STATS)}}}}}")
+        for agent, row in ref["rows"].items():
+            if not isinstance(row, dict) or not row:
+                raise bad(f"reference[{env!r}].rows[{agent!r}] must be an object with some of {list(_STATS)}")
+            unknown = sorted(set(row) - set(_STATS))
+            if unknown:
+                raise bad(f"reference[{env!r}].rows[{agent!r}] has unknown keys {unknown}; valid: {list(_STATS)}")
+            if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in row.values()):
+                raise bad(f"reference[{env!r}].rows[{agent!r}] values must be numbers")
 
 
 def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs: list[str] | None = None,
@@ -323,6 +363,11 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError(f"--jobs must be >= 1, got {args.jobs}")
         if args.address and args.executor != "ray":
             raise ValueError("--address needs --executor ray")
+        if args.device and args.device.startswith("cuda") and args.executor == "local":
+            import torch
+
+            if not torch.cuda.is_available():
+                raise ValueError(f"--device {args.device}: torch sees no CUDA device on this machine")
         check_writable(out)  # refuse before any training, not after the first cell
         check_writable(Path(args.leaderboard).parent)
     except ValueError as exc:
@@ -339,7 +384,8 @@ def main(argv: list[str] | None = None) -> int:
         code = 1
     command = "python -m benchmarks.run " + " ".join(argv if argv is not None else sys.argv[1:])
     try:
-        path = write_leaderboard(out, Path(args.leaderboard), command=command, suite=suite["name"], suite_config=suite)
+        path = write_leaderboard(out, Path(args.leaderboard), command=command, suite=suite["name"], suite_config=suite,
+                                 progress=not args.no_progress)
     except ValueError as exc:  # no finished cell of this suite yet
         print(f"error: {exc}", file=sys.stderr)
         return code or 1

@@ -148,10 +148,14 @@ def test_demo_cache_under_out_rebuilt_when_broken_and_budgets_recorded(tmp_path,
     assert cols[9:12] == ["0", str(3 * int(np.ceil(n / 4))), str(n)]
 
     h5[0].write_bytes(h5[0].read_bytes()[:200])  # a kill while Minari wrote the file
+    key = h5[0].relative_to(cache).parts[0]
+    abandoned = cache / f".{key}.tmp-999999999-dead"  # left by a collection that was killed
+    abandoned.mkdir()
     with pytest.warns(UserWarning, match=re.escape(str(h5[0].parent.parent.parent))):
         assert bench.main(_args(suite, tmp_path, "--force")) == 0
     assert json.loads((tmp_path / "res" / "bcs" / "ThreeBoxes-v0__pp" / "bc" / "seed0.json").read_text())[
         "demo_transitions"] == n
+    assert not abandoned.exists()
     # the demonstration cache's Minari metadata.json files are not results
     from benchmarks.leaderboard import write_leaderboard
 
@@ -240,3 +244,15 @@ def test_reference_rows_and_notes(tmp_path):
     assert any(l.startswith("| *thesis: dmfd* |") and "0.900" in l for l in lines)
     assert "Reference rows: thesis Table 4.1." in lines
     assert "Widths cut to 64 for a CPU." in lines and "Note: budget 20 steps instead of 1M" in lines
+
+
+def test_malformed_suite_refused_before_training(tmp_path, capsys):
+    suite = json.loads(_suite(tmp_path).read_text())
+    suite["reference"] = {"lfd_test/PointReach-v0": {"source": "thesis", "rows": {"random": {"average": 0.1}}}}
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(suite))
+    assert bench.main(["--suite", str(path), "--out", str(tmp_path / "res"), "--no-progress"]) == 2
+    assert "unknown keys ['average']" in capsys.readouterr().err and not (tmp_path / "res").exists()
+    path.write_text("{")
+    assert bench.main(["--suite", str(path), "--out", str(tmp_path / "res"), "--no-progress"]) == 2
+    assert "not valid JSON" in capsys.readouterr().err
