@@ -25,7 +25,6 @@ import importlib
 import json
 import os
 import platform
-import re
 import subprocess
 import sys
 import time
@@ -65,7 +64,9 @@ class Cell:
 
 def _safe(name: str) -> str:
     """A file-name-safe version of ``name`` (letters, digits, ``._-``)."""
-    return re.sub(r"[^A-Za-z0-9._-]+", "_", str(name)).strip("_")
+    from benchmarks.storage import safe_name
+
+    return safe_name(name)
 
 
 # ---------------------------------------------------------------------- suites
@@ -231,10 +232,9 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
     import gymnasium as gym
     from tqdm import tqdm
 
+    import lfd_envs  # noqa: F401  (registers the ids; a worker process starts without them)
     from benchmarks.agents import resolve_agent
     from benchmarks.budget import StepCounter, spent
-
-    import lfd_envs  # noqa: F401  (registers the ids; a worker process starts without them)
 
     module = cell.env_id.rpartition(":")[0]
     if module:
@@ -242,9 +242,11 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
     factory = resolve_agent(cell.agent)
     env = StepCounter(gym.make(cell.env_id, **cell.env_kwargs))
     eval_env = gym.make(cell.env_id, **cell.env_kwargs)
-    extra = {"demo_cache": str(demo_cache)} if demo_cache is not None and getattr(factory, "uses_demo_cache", False) else {}
+    kwargs = dict(cell.agent_kwargs)
+    if demo_cache is not None and getattr(factory, "uses_demo_cache", False):
+        kwargs.setdefault("demo_cache", str(demo_cache))
     t0 = time.perf_counter()
-    agent = factory(env, cell.seed, **cell.agent_kwargs, **extra)
+    agent = factory(env, cell.seed, **kwargs)
     curve: list[dict[str, float]] = []
     trains = getattr(agent, "needs_training", True)
     points = max(1, cell.curve_points) if trains else 0

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import tempfile
 from pathlib import Path
 from typing import Any, Callable
@@ -79,10 +80,15 @@ def read_result(path: str | os.PathLike) -> dict[str, Any]:
     return result
 
 
+def safe_name(name: str) -> str:
+    """A file-name-safe version of ``name`` (letters, digits, ``._-``), as used in the layout."""
+    return re.sub(r"[^A-Za-z0-9._-]+", "_", str(name)).strip("_")
+
+
 def result_files(results_dir: str | os.PathLike, suite: str | None = None) -> list[Path]:
     """Cell result files of ``suite`` (all suites if None) in the results layout, sorted."""
     root = Path(results_dir)
-    pattern = f"{suite}/*/*/seed*.json" if suite else "*/*/*/seed*.json"
+    pattern = f"{safe_name(suite)}/*/*/seed*.json" if suite else "*/*/*/seed*.json"
     return sorted(p for p in root.glob(pattern)
                   if p.is_file() and not any(part.startswith("_") for part in p.relative_to(root).parts))
 
