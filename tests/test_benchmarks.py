@@ -256,3 +256,11 @@ def test_malformed_suite_refused_before_training(tmp_path, capsys):
     path.write_text("{")
     assert bench.main(["--suite", str(path), "--out", str(tmp_path / "res"), "--no-progress"]) == 2
     assert "not valid JSON" in capsys.readouterr().err
+
+
+def test_readme_suite_example_is_a_valid_suite():
+    text = README.read_text()
+    example = json.loads(re.search(r"```json\n(.*?)```", text, re.S).group(1))
+    bench.check_suite(example, "README example")
+    cells = bench.expand_cells({"name": "readme", **example})
+    assert cells[0].cpus == 2 and cells[0].tags["notes"]

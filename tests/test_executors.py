@@ -31,7 +31,7 @@ def dies_once(env, seed, marker, **kwargs):
 
 
 def _suite(tmp_path, marker):
-    suite = {"name": "exec", "seeds": [0, 1], "eval_episodes": 2, "budget": 4, "curve_points": 1,
+    suite = {"name": "exec", "seeds": [0], "eval_episodes": 2, "budget": 4, "curve_points": 1,
              "cells": [{"env": "toy_env:lfd_test/PointReach-v0", "cpus": 1,
                         "agents": {"random": {}, f"{__name__}:dies_once": {"marker": str(marker)}}}]}
     return bench.expand_cells(suite)
