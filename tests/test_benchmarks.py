@@ -264,3 +264,19 @@ def test_readme_suite_example_is_a_valid_suite():
     bench.check_suite(example, "README example")
     cells = bench.expand_cells({"name": "readme", **example})
     assert cells[0].cpus == 2 and cells[0].tags["notes"]
+
+
+def broken_factory(env, seed, **kwargs):
+    """A third-party agent that cannot be built (like a wrong keyword in a suite)."""
+    raise TypeError("broken_factory() got an unexpected keyword argument 'widht'")
+
+
+def test_preflight_runs_every_pair_tiny_and_names_crashes(tmp_path, capsys):
+    suite = _suite(tmp_path)
+    out = tmp_path / "res"
+    assert bench.main(["--suite", str(suite), "--out", str(out), "--no-progress", "--preflight"]) == 0
+    assert "preflight: all 2 (env, agent) pairs ran" in capsys.readouterr().out
+    assert not list(out.rglob("*.json")), "preflight results are not results"
+    assert bench.main(["--suite", str(suite), "--out", str(out), "--no-progress", "--preflight",
+                       "--agent", f"{__name__}:broken_factory"]) == 1
+    assert "broken_factory" in capsys.readouterr().err
