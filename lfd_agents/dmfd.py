@@ -40,6 +40,7 @@ import numpy as np
 import torch as th
 import torch.nn.functional as F
 from gymnasium import spaces
+from stable_baselines3.common.buffers import DictReplayBuffer, ReplayBuffer
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy, ContinuousCritic
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, FlattenExtractor
@@ -83,6 +84,35 @@ def td_target(rewards: th.Tensor, dones: th.Tensor, next_q: th.Tensor, next_logp
               gamma: float, target_ent_coef: float) -> th.Tensor:
     """Bellman target ``r + γ(1 − d)(Q'(s', a') − α_t log π(a'|s'))`` (all shape (B,))."""
     return rewards + (1.0 - dones) * gamma * (next_q - target_ent_coef * next_logp)
+
+
+def _cat_samples(a: ReplayBufferSamples, b: ReplayBufferSamples) -> ReplayBufferSamples:
+    """Concatenate two sampled batches along the batch axis (Dict observations key by key)."""
+    def cat(x: Any, y: Any) -> Any:
+        if x is None or y is None:  # optional fields (e.g. n-step discounts)
+            return None if x is None and y is None else _missing(x, y)
+        if isinstance(x, dict):
+            return {k: th.cat([x[k], y[k]]) for k in x}
+        return th.cat([x, y])
+
+    return type(a)(*(cat(x, y) for x, y in zip(a, b)))
+
+
+def _missing(x: Any, y: Any) -> Any:
+    raise ValueError("cannot mix batches with and without an optional field (different buffer classes)")
+
+
+def _copy_buffer(src: ReplayBuffer | DictReplayBuffer, dst: ReplayBuffer | DictReplayBuffer) -> None:
+    """Copy the filled rows of ``src`` to the start of the (larger) buffer ``dst``."""
+    n = src.size()
+    for name in ("observations", "next_observations", "actions", "rewards", "dones", "timeouts"):
+        s_arr, d_arr = getattr(src, name), getattr(dst, name)
+        if isinstance(s_arr, dict):
+            for k in s_arr:
+                d_arr[k][:n] = s_arr[k][:n]
+        else:
+            d_arr[:n] = s_arr[:n]
+    dst.pos, dst.full = n % dst.buffer_size, n == dst.buffer_size
 
 
 # ----------------------------------------------------------------------------------- policies
@@ -236,6 +266,12 @@ class DMfD(OffPolicyAlgorithm):
         augment: pad-and-random-crop image augmentation (``"auto"``: on when there are images).
         aug_pad: padding of the augmentation (2).
         offline_steps: gradient steps on the demonstration buffer before the first env step.
+        demo_ratio: fraction of every batch drawn from a separate buffer that holds only the
+            demonstrations (``None``: the demonstrations are written into the replay buffer and
+            diluted by online data, as in the original code).  With a small budget the online
+            data outnumbers the demonstrations within a few thousand steps and the advantage
+            weighting then imitates mostly the agent's own actions; a fixed share (0.5 =
+            symmetric sampling) keeps the demonstrations in every update.
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
@@ -252,7 +288,7 @@ class DMfD(OffPolicyAlgorithm):
                  ent_coef: float = 0.5, awr_temperature: float = 2.0, target_ent_coef: float = 0.0,
                  reward_scale: float = 10.0, rsi_prob: float | str = "auto", imitation_reward_scale: float = 1.0,
                  duplicate_demos: bool | int = False, augment: bool | str = "auto", aug_pad: int = 2,
-                 offline_steps: int = 0, replay_buffer_class: Any = None,
+                 offline_steps: int = 0, demo_ratio: float | None = None, replay_buffer_class: Any = None,
                  replay_buffer_kwargs: dict[str, Any] | None = None, policy_kwargs: dict[str, Any] | None = None,
                  stats_window_size: int = 100, tensorboard_log: str | None = None, verbose: int = 0,
                  seed: int | None = None, device: th.device | str = "auto", _init_setup_model: bool = True):
@@ -264,6 +300,10 @@ class DMfD(OffPolicyAlgorithm):
             raise ValueError("ent_coef and target_ent_coef must be >= 0")
         if aug_pad < 0 or offline_steps < 0:
             raise ValueError("aug_pad and offline_steps must be >= 0")
+        if demo_ratio is not None and not 0.0 < float(demo_ratio) < 1.0:
+            raise ValueError(f"demo_ratio must be None or in (0, 1), got {demo_ratio!r}")
+        self.demo_ratio = None if demo_ratio is None else float(demo_ratio)
+        self.demo_buffer: ReplayBuffer | DictReplayBuffer | None = None
         self.entropy_weight = float(entropy_weight)
         self.ent_coef = float(ent_coef)
         self.awr_temperature = float(awr_temperature)
@@ -332,14 +372,41 @@ class DMfD(OffPolicyAlgorithm):
             self.add_demonstrations(self._episodes, duplicate=self.duplicate_demos)
 
     def add_demonstrations(self, demonstrations: Any, duplicate: bool | int = False) -> int:
-        """Write demonstrations into the replay buffer (e.g. after ``load``); returns the count."""
-        n = fill_replay_buffer(self.replay_buffer, demonstrations, duplicate=duplicate)
+        """Write demonstrations into the replay buffer, or into the demonstration buffer when
+        ``demo_ratio`` is set (e.g. after ``load``); returns the count."""
+        if self.demo_ratio is None:
+            n = fill_replay_buffer(self.replay_buffer, demonstrations, duplicate=duplicate)
+        else:
+            episodes = load_episodes(demonstrations)
+            size = sum(len(ep) for ep in episodes) + (self.demo_buffer.size() if self.demo_buffer else 0)
+            old = self.demo_buffer
+            cls = DictReplayBuffer if isinstance(self.observation_space, spaces.Dict) else ReplayBuffer
+            self.demo_buffer = cls(max(size, 1), self.observation_space, self.action_space, device=self.device,
+                                   n_envs=1, handle_timeout_termination=False)
+            if old is not None:
+                _copy_buffer(old, self.demo_buffer)
+            n = fill_replay_buffer(self.demo_buffer, episodes)
         if self.verbose:
-            print(f"DMfD: {n} demonstration transitions in the replay buffer")
+            where = "replay" if self.demo_ratio is None else "demonstration"
+            print(f"DMfD: {n} demonstration transitions in the {where} buffer")
         return n
 
+    def sample_batch(self, batch_size: int) -> ReplayBufferSamples:
+        """A training batch: from the replay buffer, or ``demo_ratio`` of it from the
+        demonstration buffer and the rest from the online replay buffer (all demonstrations
+        while the replay buffer is still empty)."""
+        env = self._vec_normalize_env
+        demos = self.demo_buffer
+        if self.demo_ratio is None or demos is None or demos.size() == 0:
+            return self.replay_buffer.sample(batch_size, env=env)
+        n_online = int(round((1.0 - self.demo_ratio) * batch_size)) if self.replay_buffer.size() else 0
+        if n_online == 0:
+            return demos.sample(batch_size, env=env)
+        return _cat_samples(demos.sample(batch_size - n_online, env=env),
+                            self.replay_buffer.sample(n_online, env=env))
+
     def _excluded_save_params(self) -> list[str]:
-        return super()._excluded_save_params() + ["actor", "critic", "critic_target", "_episodes"]
+        return super()._excluded_save_params() + ["actor", "critic", "critic_target", "_episodes", "demo_buffer"]
 
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
         return ["policy", "actor.optimizer", "critic.optimizer"], []
@@ -387,7 +454,7 @@ class DMfD(OffPolicyAlgorithm):
         self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
         logs: dict[str, list[float]] = defaultdict(list)
         for _ in range(gradient_steps):
-            data = self.augment_batch(self.replay_buffer.sample(batch_size, env=self._vec_normalize_env))
+            data = self.augment_batch(self.sample_batch(batch_size))
             critic = self.critic_loss(data)
             self.critic.optimizer.zero_grad()
             critic["loss"].backward()
@@ -412,7 +479,7 @@ class DMfD(OffPolicyAlgorithm):
                      tb_log_name: str = "run", progress_bar: bool = False):
         out = super()._setup_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar)
         if self.offline_steps and not self._offline_done:
-            if self.replay_buffer.size() == 0:
+            if self.replay_buffer.size() == 0 and (self.demo_buffer is None or self.demo_buffer.size() == 0):
                 warnings.warn("offline_steps > 0 but the replay buffer is empty (no demonstrations); skipping")
             else:
                 self.train(self.offline_steps, self.batch_size)

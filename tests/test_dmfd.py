@@ -258,3 +258,25 @@ def test_dmfd_learns_toy_pick_place_with_duplicated_demos(demos):
     assert model.replay_buffer.full
     model.learn(600)
     assert evaluate(model) > evaluate(None) + 0.1
+
+
+def test_demo_ratio_keeps_demonstrations_in_every_batch(demos):
+    """With ``demo_ratio`` the demonstrations live in their own buffer and make up that share of
+    each batch; the online replay buffer starts empty (the whole batch is demos until it fills)."""
+    n_demo = sum(len(ep["actions"]) for ep in demos)
+    model = DMfD("MlpPolicy", ToyPickPlaceEnv(), demonstrations=demos, demo_ratio=0.25, batch_size=64,
+                 policy_kwargs=tiny(), seed=0)
+    assert model.replay_buffer.size() == 0 and model.demo_buffer.size() == n_demo
+    demo_obs = np.concatenate([np.asarray(ep["observations"][:-1], np.float32) for ep in demos])
+
+    def demo_share(batch) -> float:
+        obs = batch.observations.numpy()
+        return float(np.mean(np.abs(obs[:, None] - demo_obs[None]).max(-1).min(1) < 1e-6))
+
+    assert demo_share(model.sample_batch(64)) == 1.0
+    model.learn(200)
+    assert model.replay_buffer.size() == 200
+    batch = model.sample_batch(64)
+    assert len(batch.actions) == 64 and demo_share(batch) == pytest.approx(0.25, abs=0.03)
+    with pytest.raises(ValueError, match="demo_ratio"):
+        DMfD("MlpPolicy", ToyPickPlaceEnv(), demonstrations=demos, demo_ratio=1.0, policy_kwargs=tiny())
