@@ -110,7 +110,6 @@ def test_buffer_prefill_counts_layout_and_duplication(demos):
 
 
 def test_minari_dataset_round_trip(tmp_path):
-    pytest.importorskip("minari")
     from lfd_envs import datasets
 
     path = datasets.collect("ClothFoldDiagonalPinned-v0", 1, tmp_path,

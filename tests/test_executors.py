@@ -59,7 +59,7 @@ def test_local_processes_run_resume_and_retry_dead_worker(tmp_path):
 
 
 def test_ray_executor_runs_a_tiny_suite(tmp_path):
-    ray = pytest.importorskip("ray", reason="ray is not installed (pip install 'lfd[cluster]')")
+    import ray  # installed by the test extra
     cells = _suite(tmp_path, tmp_path / "marker")
     out = tmp_path / "res"
     ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False,

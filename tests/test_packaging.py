@@ -25,7 +25,7 @@ def test_distribution_is_not_named_lfd():
 def test_video_extra_keeps_pillow_and_records_mp4(tmp_path):
     (spec,) = PYPROJECT["project"]["optional-dependencies"]["video"]
     assert re.fullmatch(r"moviepy>=1\.0\.3,<2", spec)  # moviepy 2 caps pillow below 12
-    pytest.importorskip("moviepy")
+    import moviepy  # noqa: F401  (installed by the test extra)
     env = gym.make("ThreeBoxes-v0", obs_mode="state", render_mode="rgb_array", render_size=48)
     env = gym.wrappers.RecordVideo(env, str(tmp_path / "videos"), episode_trigger=lambda e: True)
     env.reset(seed=0)

@@ -83,7 +83,8 @@ def test_sb3_learns_a_few_steps(algo):
 
 
 def test_dataset_round_trip(tmp_path):
-    datasets = pytest.importorskip("lfd_envs.datasets")
+    from lfd_envs import datasets
+
     kwargs = dict(resolution=20, num_pickers=1, action_mode="pick_place", obs_mode="state")
     path = datasets.collect("ClothFoldDiagonalPinned-v0", 2, tmp_path, env_kwargs=kwargs, seed=3, progress=False)
     ds = datasets.load(path)
