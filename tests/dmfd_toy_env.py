@@ -83,10 +83,14 @@ class ToyPickPlaceEnv(LfdEnv):
 
 
 class ToyExpert:
-    """Scripted oracle: keep the grasp closed, go to the block (it attaches), carry it to the goal."""
+    """Scripted oracle: keep the grasp closed, go to the block (it attaches), carry it to the goal.
 
-    def __init__(self, env: Any):
+    ``goal_offset`` makes a suboptimal demonstrator that carries the block to ``goal + offset``.
+    """
+
+    def __init__(self, env: Any, goal_offset: np.ndarray | None = None):
         self.env = env.unwrapped
+        self.goal_offset = np.zeros(2) if goal_offset is None else np.asarray(goal_offset, float)
 
     def reset(self) -> None:
         pass
@@ -94,20 +98,27 @@ class ToyExpert:
     def predict(self, observation: Any, state: Any = None, episode_start: Any = None,
                 deterministic: bool = True) -> tuple[np.ndarray, None]:
         e = self.env
-        target = e.goal if e.grasped else e.block
+        target = np.clip(e.goal + self.goal_offset, -1.0, 1.0) if e.grasped else e.block
         delta = (target - e.gripper) / e.step_size
         move = delta / max(1.0, float(np.abs(delta).max()))
         return np.array([move[0], move[1], 1.0], np.float32), None
 
 
 def collect_episodes(n: int, obs_mode: str = "state", seed: int = 0, horizon: int = 30,
-                     image_size: int = 32) -> list[dict[str, Any]]:
-    """Expert episodes as dicts (observations T+1, actions, rewards, ..., per-step states in infos)."""
+                     image_size: int = 32, wrong_goal_fraction: float = 0.0) -> list[dict[str, Any]]:
+    """Expert episodes as dicts (observations T+1, actions, rewards, ..., per-step states in infos).
+
+    With ``wrong_goal_fraction`` that share of the episodes (drawn at random) carries the block
+    to a wrong place 0.6 from the goal: mixed-quality demonstrations.
+    """
     env = ToyPickPlaceEnv(obs_mode=obs_mode, horizon=horizon, image_size=image_size)
-    expert = ToyExpert(env)
+    rng = np.random.default_rng(seed)
     episodes = []
     for i in range(n):
         obs, _ = env.reset(seed=seed + i)
+        direction = rng.normal(size=2)
+        offset = 0.6 * direction / np.linalg.norm(direction) if rng.random() < wrong_goal_fraction else None
+        expert = ToyExpert(env, offset)
         observations, actions, rewards, states = [obs], [], [], [env.get_state()]
         done = False
         while not done:
