@@ -4,7 +4,7 @@
    and after its scripted expert has acted, side by side, into ``docs/images/<EnvId>.png``
    (the pictures in the README).
 2. Runs ``python -m benchmarks.run --suite smoke --force`` (real training at small budgets on
-   a 2-core CPU, re-running the committed cells) which rewrites ``leaderboard.md``.
+   a 2-core CPU, re-running the committed cells) which rewrites ``docs/leaderboard-smoke.md``.
 """
 
 from __future__ import annotations
@@ -55,7 +55,8 @@ def main(argv: list[str] | None = None) -> int:
     files = render_scenes()
     print(f"[demo] wrote {len(files)} images to {IMAGES.relative_to(ROOT)} in {time.perf_counter() - t0:.0f} s")
     # --force: the committed leaderboard's cells exist already; the demo re-trains them for real
-    code = run.main(["--suite", "smoke", "--force", *(argv or [])])
+    code = run.main(["--suite", "smoke", "--force", "--leaderboard", str(ROOT / "docs" / "leaderboard-smoke.md"),
+                     "--plot-dir", str(ROOT / "docs" / "leaderboard"), *(argv or [])])
     print(f"[demo] done in {(time.perf_counter() - t0) / 60:.1f} min")
     return code
 
