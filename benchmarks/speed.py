@@ -533,8 +533,8 @@ def drycloth_threeboxes_rows(device: str = "cpu", repeats: int = 3,
         sec, cpu = _median_seconds_without_reset(run, reset_only, repeats, budget_s=4.0, reset_budget_s=0.5)
         base = env.unwrapped
         rows.append({"section": "drycloth_threeboxes", "env": env_id, "action_mode": mode, "pickers": pickers,
-                     "obs": obs_mode, "resolution": base.task.resolution, "particles": base.batch.sim.num_particles,
-                     "frames": base.batch.action_mode.frames_per_step, "device": device,
+                     "obs": obs_mode, "resolution": base.task.resolution, "particles": base.num_particles,
+                     "frames": base.picker_actions.frames_per_step, "device": device,
                      "env_steps_per_s": round(n / sec, 2), "cpu_env_steps_per_s": round(n / cpu, 2)})
         env.close()
     return rows
@@ -579,8 +579,8 @@ def particle_env_rows(device: str = "cpu", repeats: int = 3,
                 base = env.unwrapped
                 rows.append({"section": "particle_envs", "env": env_id, "action_mode": mode, "obs": obs_mode,
                              "pickers": base.num_pickers, "resolution": base.task.resolution,
-                             "particles": base.batch.sim.num_particles,
-                             "frames": base.batch.action_mode.frames_per_step, "device": device,
+                             "particles": base.num_particles,
+                             "frames": base.picker_actions.frames_per_step, "device": device,
                              "env_steps_per_s": round(n / sec, 2), "cpu_env_steps_per_s": round(n / cpu, 2)})
                 env.close()
     return rows
@@ -605,8 +605,7 @@ def _nist_steps_per_s(steps: int, seed: int, press: bool = False, **env_kwargs: 
         env.reset(seed=seed, options={"instruction": "insert medium peg in large hole"})
         hole = env.hole_top
         env.data.qpos[:3] = hole + [0.006, 0.0, 0.001]
-        env._target = env.data.qpos[:3].copy()
-        env.data.ctrl[:] = env._target
+        env.set_commanded_target(env.data.qpos[:3].copy())
     sec, cpu = _median_seconds(run, 3, budget_s=3.0)
     env.close()
     return steps / sec, steps / cpu

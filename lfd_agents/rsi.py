@@ -29,8 +29,8 @@ from lfd_agents.demos import episodes_with_states, load_episodes
 
 def _reduced_state(env: gym.Env, obs: Any) -> np.ndarray:
     base = env.unwrapped
-    if hasattr(base, "_state_obs"):
-        return np.asarray(base._state_obs(), dtype=np.float64).ravel()
+    if hasattr(base, "state_observation"):
+        return np.asarray(base.state_observation(), dtype=np.float64).ravel()
     if isinstance(obs, dict) and "state" in obs:
         return np.asarray(obs["state"], dtype=np.float64).ravel()
     return np.asarray(obs, dtype=np.float64).ravel()

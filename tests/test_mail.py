@@ -62,7 +62,7 @@ def test_cem_on_true_simulator_beats_random_actions():
     ex.reset()
     expert_env.step(ex.predict(None)[0])
     goal_particles = expert_env.unwrapped.particle_positions
-    ws = env.unwrapped.batch.workspace
+    ws = env.unwrapped.workspace
     top = ws.to_action(np.array([0.0, 0.0, 0.1]))[2]  # box tops (MAIL fixes the pick height the same way)
 
     def constrain(samples):

@@ -19,8 +19,7 @@ def _place(env: NistBoardInsertEnv, pos: np.ndarray) -> None:
     d = env.data
     d.qpos[:3] = pos
     d.qvel[:] = 0.0
-    env._target = np.array(pos, dtype=float)
-    d.ctrl[:] = pos
+    env.set_commanded_target(pos)
     mujoco.mj_forward(env.model, d)
 
 

@@ -134,7 +134,7 @@ def test_spaces_follow_arguments(env_id, state0):
             assert env.unwrapped.horizon == env.unwrapped.task.horizons[mode]
             env.close()
     env = make(env_id, num_pickers=2, obs_mode="particles")
-    n = env.unwrapped.batch.sim.num_particles
+    n = env.unwrapped.num_particles
     assert env.observation_space.shape == (n + 2, 3)
     env = make(env_id, obs_mode="state+image", image_size=(24, 16), horizon=7)
     assert env.observation_space["image"].shape == (24, 16, 3)

@@ -43,7 +43,7 @@ def test_make_check_env_and_control_constants(task, envs):
     base = env.unwrapped
     assert base.horizon == 250 and base.frame_skip == 75 and np.isclose(base.model.opt.timestep, 0.002)
     assert base.dq_step == 0.05 and env.action_space.shape == ((8,) if task == "lift" else (7,))
-    kp = base.model.actuator_gainprm[base._arm_act, 0]
+    kp = base.model.actuator_gainprm[base.arm_actuators, 0]
     assert np.allclose(kp, (500, 500, 200, 200, 50, 50, 50))
     check_env(base, skip_render_check=True)
     env.close()

@@ -110,7 +110,7 @@ def test_contract_state_and_round_trip():
     np.testing.assert_allclose(matrix_to_quaternion(np.eye(3)), [0, 0, 0, 1])
     delta = gym.make("ThreeBoxes-v0", action_mode="delta", num_pickers=4, obs_mode="particles", resolution=3)
     assert delta.unwrapped.horizon == 75 and delta.action_space.shape == (16,)
-    n = delta.unwrapped.batch.sim.num_particles
+    n = delta.unwrapped.num_particles
     assert delta.reset(seed=0)[0].shape == (n + 4, 3)
     img = gym.make("ThreeBoxes-v0", obs_mode="state+image", image_size=20).reset(seed=0)[0]
     assert img["image"].shape == (20, 20, 3) and img["image"].std() > 5

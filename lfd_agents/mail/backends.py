@@ -40,8 +40,8 @@ class SimulatorBackend:
         self.venv = gym.make_vec(env_id, num_envs=int(num_worlds), vectorization_mode="vector_entry_point", **kwargs)
         self.venv.reset(seed=0)
         self.num_worlds = int(num_worlds)
-        self.num_particles = self.venv.unwrapped.batch.sim.num_particles if hasattr(self.venv.unwrapped, "batch") \
-            else self.venv.single_observation_space.shape[0]
+        self.num_particles = int(getattr(self.venv.unwrapped, "num_particles",
+                                         self.venv.single_observation_space.shape[0]))
         self.indices = np.arange(self.num_particles)
         self.transitions = 0
 

@@ -30,19 +30,18 @@ def _random_action(venv: Any, world: int, rng: np.random.Generator, explore: flo
                    uniform: float) -> np.ndarray:
     from lfd_envs.experts.random_pick_place import default_sample_pick_place
 
-    batch = venv.batch
-    task = batch.task
-    modes = batch.action_mode
+    task = venv.task
+    modes = venv.picker_actions
     dim = int(np.prod(venv.single_action_space.shape))
     u = rng.random()
     if u < uniform:
         return rng.uniform(-1.0, 1.0, dim).astype(np.float32)
-    positions = np.asarray(batch.positions[world], np.float64)
+    positions = np.asarray(venv.particle_positions[world], np.float64)
     sampler = getattr(task, "sample_pick_place", None)
     if sampler is None:
-        pick, place = default_sample_pick_place(task, positions, batch.workspace, rng)
+        pick, place = default_sample_pick_place(task, positions, venv.workspace, rng)
     else:
-        pick, place = sampler(positions, {k: v[world] for k, v in batch.ctx.items()}, rng)
+        pick, place = sampler(positions, venv.world_context(world), rng)
     pick = np.asarray(pick, np.float64).copy()
     pick[:, 2] = np.where(pick[:, 2] < 0.03, 0.0, pick[:, 2])  # on the table: as low as possible
     action = modes.join(pick, place).astype(np.float64)
@@ -68,11 +67,11 @@ def collect_transitions(env_id: str, env_kwargs: dict[str, Any], num: int, *, nu
     base = venv.unwrapped
     rng = np.random.default_rng(seed)
     venv.reset(seed=seed, options={"split": split})
-    n = int(base.batch.positions.shape[1])
+    n = base.num_particles
     xs, acts, nxt, variants = [], [], [], []
     while sum(len(a) for a in acts) < num:
-        x = np.array(base.batch.positions, np.float32)
-        var = base._variant.copy()
+        x = np.array(base.particle_positions, np.float32)
+        var = base.variant_indices
         a = np.stack([_random_action(base, i, rng, explore, noise, uniform) for i in range(w)])
         obs, _, term, trunc, infos = venv.step(a)
         obs = np.array(obs)

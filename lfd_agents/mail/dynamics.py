@@ -181,7 +181,7 @@ class LearnedDynamics:
     def for_env(cls, env: Any, config: DynamicsConfig | None = None, seed: int = 0) -> "LearnedDynamics":
         """Model for a particle env in ``pick_place`` mode (workspace, pickers, sub-sampling from it)."""
         base = env.unwrapped
-        ws = base.batch.workspace
+        ws = base.workspace
         cfg = DynamicsConfig(**{**asdict(config or DynamicsConfig()), "num_pickers": int(base.num_pickers),
                                 "workspace_low": tuple(float(v) for v in ws.lo),
                                 "workspace_high": tuple(float(v) for v in ws.hi)})

@@ -337,6 +337,11 @@ class LfdEnv(gym.Env):
         self._p0 = episode.p0
         self._prev_perf = episode.prev_performance
 
+    def state_observation(self) -> np.ndarray:
+        """Reduced state vector of the current state (float32, matches ``state_space``), whatever
+        the ``obs_mode`` (privileged for image-observation agents, e.g. reference-state rewards)."""
+        return self._state_obs()
+
     def current_observation(self) -> Any:
         """Observation of the current state (e.g. after :meth:`set_state`)."""
         return self._observation()

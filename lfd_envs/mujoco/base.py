@@ -282,6 +282,11 @@ class MujocoEnv(LfdEnv):
         """Current arm joint velocities ``(d,)`` (a copy)."""
         return self.data.qvel[self._arm_dofadr].copy()
 
+    @property
+    def arm_actuators(self) -> np.ndarray:
+        """Actuator ids of the arm's joint servos ``(d,)`` in arm joint order (a copy)."""
+        return self._arm_act.copy()
+
     def _reset_sim(self) -> None:
         """``mj_resetData``; arm at ``init_arm_qpos`` + noise (env RNG), servos holding it.
 

@@ -312,6 +312,12 @@ class NistBoardInsertEnv(LfdEnv):
         """The compliance controller's target position of the tip."""
         return self._target.copy()
 
+    def set_commanded_target(self, position: np.ndarray) -> None:
+        """Set the compliance controller's target (and the carriage servos' controls) to
+        ``position`` ``(3,)``, e.g. after placing the tip by hand in ``data.qpos``."""
+        self._target = np.array(position, dtype=float)
+        self.data.ctrl[:] = self._target
+
     def _apply_task(self, index: int) -> None:
         """Make the task's peg the only colliding, visible peg and fit the fingers to it."""
         self._task_index = int(index)

@@ -48,7 +48,7 @@ from lfd_envs.core.state import check_episode, check_state_layout, episode_array
 from lfd_envs.core.variants import VariantSplit
 from lfd_envs.tasks.particle_batch import ParticleBatch
 from lfd_envs.tasks.particle_task import ParticleTask
-from lfd_envs.tasks.picker_actions import ACTION_MODES
+from lfd_envs.tasks.picker_actions import ACTION_MODES, ActionMode, Workspace
 
 __all__ = ["ParticleEnv", "ParticleVectorEnv", "PickPlaceParticleEnv", "PickPlaceParticleVectorEnv",
            "PARTICLE_OBS_MODES"]
@@ -74,11 +74,27 @@ def _horizon(task: ParticleTask, action_mode: str, horizon: Any) -> int:
     return task.horizon(action_mode) if horizon is None else check_int_range("horizon", horizon, 1)
 
 
-class _SpacesMixin:
-    """Spaces of a particle task built from the batch (shared by both front ends)."""
+class _ParticleBatchViews:
+    """Spaces and public read-only views of the particle batch (shared by both front ends)."""
 
     batch: ParticleBatch
     task: ParticleTask
+
+    @property
+    def num_particles(self) -> int:
+        """Particles ``N`` of one world (pickers not counted)."""
+        return int(self.batch.sim.num_particles)
+
+    @property
+    def workspace(self) -> Workspace:
+        """Workspace box of the pickers (bounds of pick-and-place targets)."""
+        return self.batch.workspace
+
+    @property
+    def picker_actions(self) -> ActionMode:
+        """The action mode object turning normalised actions into picker motions (``join`` for
+        pick-and-place actions, ``frames_per_step``)."""
+        return self.batch.action_mode
 
     def _task_spaces(self) -> tuple[spaces.Box, spaces.Box, spaces.Box]:
         state = spaces.Box(-POSITION_BOUND, POSITION_BOUND, (self.task.state_dim(),), np.float32)
@@ -87,7 +103,7 @@ class _SpacesMixin:
         return self.batch.action_mode.action_space, state, particles
 
 
-class ParticleEnv(_SpacesMixin, LfdEnv):
+class ParticleEnv(_ParticleBatchViews, LfdEnv):
     """Single particle-task env (``LfdEnv`` contract over a one-world batch).
 
     Subclasses set ``task_class`` (and ``task_options`` defaults for extra task arguments).
@@ -188,7 +204,7 @@ class ParticleEnv(_SpacesMixin, LfdEnv):
         return self.batch.sim.grasped[0]
 
 
-class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
+class ParticleVectorEnv(_ParticleBatchViews, gym.vector.VectorEnv):
     """Batched particle-task env: ``num_envs`` worlds in one engine, SAME_STEP autoreset.
 
     ``reset(seed=s)`` seeds world ``i`` with ``s + i`` (or ``seed`` may be a list);
@@ -341,6 +357,22 @@ class ParticleVectorEnv(_SpacesMixin, gym.vector.VectorEnv):
         self._steps[index] = episode.step
         self.batch.p0[index] = episode.p0
         self._prev[index] = episode.prev_performance
+
+    # ------------------------------------------------------------------ privileged views (agents, analysis)
+    @property
+    def particle_positions(self) -> np.ndarray:
+        """Particle positions of every world ``(num_envs, N, 3)`` float32 (cached; do not modify)."""
+        return self.batch.positions
+
+    @property
+    def variant_indices(self) -> np.ndarray:
+        """Variant ``k`` (within its split) of every world ``(num_envs,)`` int64, a copy; -1 before
+        the first reset."""
+        return self._variant.copy()
+
+    def world_context(self, index: int) -> dict[str, np.ndarray]:
+        """Task context (goals, geometry of the variant) of world ``index``: views, not copies."""
+        return {k: v[index] for k, v in self.batch.ctx.items()}
 
     # ------------------------------------------------------------------ internals
     def _seeds(self, seed: int | Sequence[int]) -> list[int]:
