@@ -15,7 +15,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from lfd_envs.core.errors import as_real_array, check_choice, check_image_size, check_int_range, strict_kwargs
+from lfd_envs.core.errors import StrictInitKwargs, as_real_array, check_choice, check_image_size, check_int_range
 from lfd_envs.core.state import check_episode, check_state_layout, episode_arrays
 from lfd_envs.core.variants import VariantSplit
 
@@ -65,13 +65,14 @@ def observation_space(obs_mode: str, image_size: tuple[int, int], state_space: s
     raise ValueError(f"obs_mode {obs_mode!r} has no observation space here")
 
 
-class LfdEnv(gym.Env):
+class LfdEnv(StrictInitKwargs, gym.Env):
     """Base class of every lfd environment.
 
-    Subclasses set ``task_name``, build ``self.action_space`` and ``self.state_space``
-    (a float32 ``Box`` of the reduced state) in their ``__init__`` and then call
-    :meth:`_finish_init`. Every ``__init__`` of a subclass rejects unknown keyword
-    arguments with a ``TypeError`` listing the valid ones.
+    Subclasses set ``task_name``; their ``__init__`` calls ``super().__init__(obs_mode=...,
+    image_size=..., render_mode=..., horizon=...)`` first, builds ``self.action_space`` and
+    ``self.state_space`` (a float32 ``Box`` of the reduced state) and calls
+    :meth:`_finish_init` last. Constructors reject unknown keyword arguments with a
+    ``TypeError`` listing the valid ones (:class:`~lfd_envs.core.errors.StrictInitKwargs`).
 
     Episode conventions:
         * ``reset(seed=..., options={"variant": k, "split": "train"|"eval"})`` draws variant
@@ -94,14 +95,8 @@ class LfdEnv(gym.Env):
     #: default ``(height, width)`` of frames returned by ``render()`` (the ``render_size`` argument)
     render_size: tuple[int, int] = (256, 256)
 
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        super().__init_subclass__(**kwargs)
-        init = cls.__dict__.get("__init__")
-        if init is not None and not getattr(init, "__lfd_strict__", False):
-            cls.__init__ = strict_kwargs(init)  # type: ignore[method-assign]
-
     # ------------------------------------------------------------------ construction
-    def _init_contract(
+    def __init__(
         self,
         *,
         obs_mode: str,
@@ -112,8 +107,10 @@ class LfdEnv(gym.Env):
         num_train_variants: int = 800,
         num_eval_variants: int = 200,
     ) -> None:
-        """Store and validate the arguments every env shares. Call first in ``__init__``.
+        """Store and validate the arguments every env shares.
 
+        A subclass's ``__init__`` calls ``super().__init__(...)`` with these first, then builds
+        its simulation, ``action_space`` and ``state_space``, and calls :meth:`_finish_init` last.
         ``render_size`` (an int or ``(height, width)``, like ``image_size``) sets the frames of
         ``render()``; None keeps the class default.
         """
@@ -131,8 +128,13 @@ class LfdEnv(gym.Env):
         self._prev_perf = 0.0
         self._episode_count = 0
 
+    def _init_contract(self, **contract: Any) -> None:
+        """Former name of ``LfdEnv.__init__(self, **contract)`` (kept for envs written against it)."""
+        LfdEnv.__init__(self, **contract)
+
     def _finish_init(self) -> None:
-        """Build ``observation_space`` from ``obs_mode``. Call last in ``__init__``."""
+        """Build ``observation_space`` from ``obs_mode`` and the spaces set by the subclass.
+        Call last in ``__init__``."""
         self.observation_space = self._observation_space_for(self.obs_mode)
 
     def _observation_space_for(self, obs_mode: str) -> spaces.Space:

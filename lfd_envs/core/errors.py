@@ -92,29 +92,54 @@ def check_array(name: str, value: Any, shape: tuple[int, ...], dtype: Any = np.f
     return arr
 
 
-def strict_kwargs(init: Callable) -> Callable:
-    """Decorate an ``__init__`` so unknown keyword arguments raise a ``TypeError`` listing the valid ones.
+def _keyword_arguments(init: Callable) -> list[str] | None:
+    """Sorted keyword names ``init`` accepts (None when it takes ``**kwargs``)."""
+    params = inspect.signature(init).parameters
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+        return None
+    return sorted(n for n, p in params.items()
+                  if n != "self" and p.kind in (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD))
+
+
+@functools.lru_cache(maxsize=None)
+def _init_keyword_arguments(cls: type) -> list[str] | None:
+    return _keyword_arguments(cls.__init__)
+
+
+def check_init_kwargs(cls: type, kwargs: dict[str, Any]) -> None:
+    """``TypeError`` listing the valid arguments when ``kwargs`` has names ``cls.__init__`` does not take.
 
     Python's own message only names the bad argument; users of ``gymnasium.make`` need
     to see what *is* accepted.
     """
-    sig = inspect.signature(init)
-    params = sig.parameters
-    takes_var_kw = any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values())
-    valid = sorted(
-        n for n, p in params.items()
-        if n != "self" and p.kind in (inspect.Parameter.KEYWORD_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
-    )
+    valid = _init_keyword_arguments(cls)
+    unknown = [] if valid is None else sorted(set(kwargs) - set(valid))
+    if unknown:
+        raise TypeError(f"{cls.__name__} got unknown argument(s) {unknown}; valid arguments are {valid}")
+
+
+class StrictInitKwargs:
+    """Base class whose constructor rejects unknown keyword arguments with a ``TypeError`` listing
+    the valid ones (:func:`check_init_kwargs` against the subclass's ``__init__``, before it runs).
+
+    Subclasses that override ``__new__`` pass the constructor arguments on to ``super().__new__``.
+    """
+
+    def __new__(cls, *args: Any, **kwargs: Any):
+        check_init_kwargs(cls, kwargs)
+        return super().__new__(cls)
+
+
+def strict_kwargs(init: Callable) -> Callable:
+    """Decorate an ``__init__`` so unknown keyword arguments raise a ``TypeError`` listing the valid ones
+    (for classes that do not derive from :class:`StrictInitKwargs`)."""
+    valid = _keyword_arguments(init)
 
     @functools.wraps(init)
     def wrapper(self, *args, **kwargs):
-        if not takes_var_kw:
-            unknown = sorted(set(kwargs) - set(valid))
-            if unknown:
-                raise TypeError(
-                    f"{type(self).__name__} got unknown argument(s) {unknown}; valid arguments are {valid}"
-                )
+        unknown = [] if valid is None else sorted(set(kwargs) - set(valid))
+        if unknown:
+            raise TypeError(f"{type(self).__name__} got unknown argument(s) {unknown}; valid arguments are {valid}")
         return init(self, *args, **kwargs)
 
-    wrapper.__lfd_strict__ = True  # type: ignore[attr-defined]
     return wrapper

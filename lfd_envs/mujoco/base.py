@@ -10,8 +10,8 @@ A task subclasses :class:`MujocoEnv` (and usually
 
         def __init__(self, obs_mode="state", image_size=84, render_mode=None, horizon=250,
                      goal_conditioned=False):
-            self._init_contract(obs_mode=obs_mode, image_size=image_size,
-                                render_mode=render_mode, horizon=horizon)
+            super().__init__(obs_mode=obs_mode, image_size=image_size,
+                             render_mode=render_mode, horizon=horizon)
             self._init_mujoco(XML, arm_joint_names=[...], dq_step=0.05, frame_skip=75,
                               timestep=0.002, servo_kp=[...], gravity_compensation="gravcomp",
                               init_arm_qpos=[...], goal_conditioned=goal_conditioned)
@@ -120,7 +120,7 @@ class MujocoEnv(LfdEnv):
         ``compute_reward`` (so tools do not take them for goal envs)."""
         if cls.goal_dim > 0 and not issubclass(cls, GoalEnvMixin) and _wants_goal(cls, args, kwargs):
             cls = goal_env_class(cls)
-        return super().__new__(cls)
+        return super().__new__(cls, *args, **kwargs)
 
     # ------------------------------------------------------------------ construction
     def _init_mujoco(
@@ -141,7 +141,7 @@ class MujocoEnv(LfdEnv):
         goal_conditioned: bool = False,
         assets: dict[str, bytes] | None = None,
     ) -> None:
-        """Load the model and set up control. Call after ``_init_contract``.
+        """Load the model and set up control. Call after ``super().__init__(...)``.
 
         Args:
             model: MJCF string (``assets`` maps file names to bytes) or a compiled model.

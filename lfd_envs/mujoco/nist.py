@@ -191,8 +191,8 @@ class NistBoardInsertEnv(LfdEnv):
         render_size: int | tuple[int, int] | None = None,
         instruction_encoding: str = "text",
     ) -> None:
-        self._init_contract(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
-                            render_size=render_size)
+        super().__init__(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
+                         render_size=render_size)
         self.fit = check_choice("fit", fit, ("loose", "tight"))
         self.action_mode = check_choice("action_mode", action_mode, ("continuous", "tokens"))
         self.cameras = self._check_cameras(cameras)

@@ -142,8 +142,8 @@ class Push2DObstacleEnv(PlanningMixin, MujocoEnv):
     def __init__(self, obs_mode: str = "state", image_size: int | tuple[int, int] = 84,
                  render_mode: str | None = None, horizon: int = 400, goal_conditioned: bool = False,
                  render_size: int | tuple[int, int] | None = None) -> None:
-        self._init_contract(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
-                            render_size=render_size)
+        super().__init__(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
+                         render_size=render_size)
         self._init_mujoco(_scene_xml(), arm_joint_names=ARM_JOINTS, dq_step=0.1, frame_skip=20,
                           init_arm_qpos=np.zeros(4), init_noise="uniform", init_noise_scale=0.02,
                           goal_conditioned=goal_conditioned)

@@ -86,19 +86,17 @@ class SawyerObstacleEnv(PlanningMixin, MujocoEnv):
     def __init__(self, obs_mode: str = "state", image_size: int | tuple[int, int] = 84,
                  render_mode: str | None = None, horizon: int = HORIZON, goal_conditioned: bool = False,
                  robot_visual: str = "primitive", render_size: int | tuple[int, int] | None = None) -> None:
-        self._init_sawyer(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
-                          goal_conditioned=goal_conditioned, robot_visual=robot_visual, render_size=render_size)
+        super().__init__(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
+                         render_size=render_size)
+        self._init_sawyer(goal_conditioned=goal_conditioned, robot_visual=robot_visual)
         self._init_task()
         self._finish_init()
 
     def _init_task(self) -> None:
         """Task-specific setup once the model is loaded (ids of the task's bodies, sites ...)."""
 
-    def _init_sawyer(self, *, obs_mode: str, image_size: Any, render_mode: str | None, horizon: int,
-                     goal_conditioned: bool, robot_visual: str = "primitive", render_size: Any = None) -> None:
-        """Everything shared by the Sawyer tasks' ``__init__`` (call first)."""
-        self._init_contract(obs_mode=obs_mode, image_size=image_size, render_mode=render_mode, horizon=horizon,
-                            render_size=render_size)
+    def _init_sawyer(self, *, goal_conditioned: bool, robot_visual: str = "primitive") -> None:
+        """Model, control and spaces shared by the Sawyer tasks (after ``LfdEnv.__init__``)."""
         self.robot_visual = check_choice("robot_visual", robot_visual, ROBOT_VISUALS)
         self._scene_option = mujoco.MjvOption()
         if self.robot_visual == "primitive":  # collision primitives instead of ~280k mesh triangles

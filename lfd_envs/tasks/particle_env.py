@@ -43,7 +43,8 @@ from gymnasium.vector.utils import batch_space
 
 from lfd_envs.core.base_env import (OBS_MODES, RENDER_MODES, LfdEnv, check_render_mode, check_reset_options,
                                    observation_space)
-from lfd_envs.core.errors import as_real_array, check_choice, check_image_size, check_int_range, strict_kwargs
+from lfd_envs.core.errors import (StrictInitKwargs, as_real_array, check_choice, check_image_size,
+                                  check_int_range)
 from lfd_envs.core.state import check_episode, check_state_layout, episode_arrays
 from lfd_envs.core.variants import VariantSplit
 from lfd_envs.tasks.particle_batch import ParticleBatch
@@ -123,13 +124,15 @@ class ParticleEnv(_ParticleBatchViews, LfdEnv):
     def _setup(self, task_options: dict[str, Any], action_mode: str, obs_mode: str | None,
                image_size: Any, device: str, render_mode: str | None, horizon: int | None,
                render_size: Any = None) -> None:
+        """The construction shared by every particle env's ``__init__`` (they differ only in
+        defaults and task options): the task, ``LfdEnv.__init__``, the batch, the spaces."""
         check_choice("action_mode", action_mode, ACTION_MODES)
         device = _check_device(device)
         task = self.task_class(**{**self.task_options, **task_options})
         self.task_name = task.name
-        self._init_contract(obs_mode=obs_mode or task.default_obs_mode,
-                            image_size=image_size, render_mode=render_mode,
-                            horizon=_horizon(task, action_mode, horizon), render_size=render_size)
+        super().__init__(obs_mode=obs_mode or task.default_obs_mode, image_size=image_size,
+                         render_mode=render_mode, horizon=_horizon(task, action_mode, horizon),
+                         render_size=render_size)
         self.task = task
         self.action_mode = action_mode
         self.num_pickers = task.num_pickers
@@ -204,7 +207,7 @@ class ParticleEnv(_ParticleBatchViews, LfdEnv):
         return self.batch.sim.grasped[0]
 
 
-class ParticleVectorEnv(_ParticleBatchViews, gym.vector.VectorEnv):
+class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.VectorEnv):
     """Batched particle-task env: ``num_envs`` worlds in one engine, SAME_STEP autoreset.
 
     ``reset(seed=s)`` seeds world ``i`` with ``s + i`` (or ``seed`` may be a list);
@@ -221,12 +224,6 @@ class ParticleVectorEnv(_ParticleBatchViews, gym.vector.VectorEnv):
     }
     render_size: tuple[int, int] = (256, 256)
     terminate_on_success: ClassVar[bool] = False
-
-    def __init_subclass__(cls, **kwargs: Any) -> None:
-        super().__init_subclass__(**kwargs)
-        init = cls.__dict__.get("__init__")
-        if init is not None and not getattr(init, "__lfd_strict__", False):
-            cls.__init__ = strict_kwargs(init)  # type: ignore[method-assign]
 
     def __init__(self, num_envs: int = 1, num_pickers: int | None = None, action_mode: str = "delta",
                  obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
