@@ -158,7 +158,11 @@ class BC(BaseAlgorithm):
         demonstrations: anything :func:`lfd_agents.demos.load_episodes` accepts.
         learning_rate: Adam learning rate (1e-3).
         batch_size: minibatch size (256).
-        n_epochs: epochs run by each ``learn`` call unless ``epochs`` is given (10).
+        n_epochs: epochs run by each ``learn`` call unless ``epochs`` is given; ``None``
+            (default) runs as many epochs as give ``default_updates`` gradient steps on the
+            dataset.  A handful of epochs leaves a delta-mode policy near the demonstrations'
+            mean action (idle for most of the horizon), which does nothing useful.
+        default_updates: gradient steps of one ``learn`` call when ``n_epochs`` is None (10,000).
         augment: pad-and-random-crop augmentation of image inputs (``"auto"``: on for images).
         aug_pad: augmentation padding (2).
     """
@@ -168,17 +172,19 @@ class BC(BaseAlgorithm):
     policy: BCPolicy
 
     def __init__(self, policy: str | type[BCPolicy], env: GymEnv | str | None, demonstrations: Any = None,
-                 learning_rate: float | Schedule = 1e-3, batch_size: int = 256, n_epochs: int = 10,
+                 learning_rate: float | Schedule = 1e-3, batch_size: int = 256, n_epochs: int | None = None,
+                 default_updates: int = 10_000,
                  augment: bool | str = "auto", aug_pad: int = 2, policy_kwargs: dict[str, Any] | None = None,
                  tensorboard_log: str | None = None, verbose: int = 0, seed: int | None = None,
                  device: th.device | str = "auto", _init_setup_model: bool = True):
         super().__init__(policy, env, learning_rate, policy_kwargs=policy_kwargs, tensorboard_log=tensorboard_log,
                          verbose=verbose, device=device, support_multi_env=True, seed=seed,
                          supported_action_spaces=(spaces.Box,))
-        if batch_size < 1 or n_epochs < 0:
-            raise ValueError("batch_size must be >= 1 and n_epochs >= 0")
+        if batch_size < 1 or (n_epochs is not None and n_epochs < 0) or default_updates < 1:
+            raise ValueError("batch_size and default_updates must be >= 1 and n_epochs >= 0 (or None)")
         self.batch_size = int(batch_size)
-        self.n_epochs = int(n_epochs)
+        self.n_epochs = None if n_epochs is None else int(n_epochs)
+        self.default_updates = int(default_updates)
         self.augment = augment
         self.aug_pad = int(aug_pad)
         self._episodes = load_episodes(demonstrations)
@@ -213,19 +219,26 @@ class BC(BaseAlgorithm):
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
         return ["policy", "policy.optimizer"], []
 
+    def epochs_per_learn(self) -> int:
+        """Epochs of one ``learn`` call: ``n_epochs``, or enough for ``default_updates`` steps."""
+        if self.n_epochs is not None:
+            return self.n_epochs
+        batches = -(-self.dataset.size() // self.batch_size) if self.dataset is not None else 1
+        return max(1, -(-self.default_updates // batches))
+
     def loss(self, observations: Any, actions: th.Tensor) -> th.Tensor:
         """MSE between the policy's mean action and the (scaled) demonstration actions."""
         return F.mse_loss(self.policy.mean_action(observations), actions)
 
     def learn(self, total_timesteps: int = 0, callback: Any = None, log_interval: int = 1, tb_log_name: str = "BC",
               reset_num_timesteps: bool = True, progress_bar: bool = False, *, epochs: int | None = None) -> "BC":
-        """Run ``epochs`` (default ``n_epochs``) epochs over the demonstrations.
+        """Run ``epochs`` (default: :meth:`epochs_per_learn`) epochs over the demonstrations.
 
         ``total_timesteps`` is accepted for harness compatibility and ignored (BC is offline).
         """
         if self.dataset is None:
             raise RuntimeError("BC has no demonstrations; pass demonstrations= or call set_demonstrations()")
-        n_epochs = self.n_epochs if epochs is None else int(epochs)
+        n_epochs = self.epochs_per_learn() if epochs is None else int(epochs)
         _, callback = self._setup_learn(0, callback, reset_num_timesteps, tb_log_name, progress_bar)
         callback.on_training_start(locals(), globals())
         self.policy.set_training_mode(True)

@@ -14,10 +14,11 @@ def tiny() -> dict:
     return dict(net_arch=[32, 32])  # fresh each time: SB3 adds keys to policy_kwargs in place
 
 
-def test_bc_beats_untrained_policy():
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_bc_beats_untrained_policy(seed):
     eps = collect_episodes(30)
     env = ToyPickPlaceEnv()
-    model = BC("MlpPolicy", env, demonstrations=eps, batch_size=64, policy_kwargs=dict(net_arch=[64, 64]), seed=0)
+    model = BC("MlpPolicy", env, demonstrations=eps, batch_size=64, policy_kwargs=dict(net_arch=[64, 64]), seed=seed)
     untrained = evaluate(model)
     model.learn(epochs=40)
     trained = evaluate(model)
@@ -96,3 +97,17 @@ def test_plain_sb3_algorithms_run_on_particle_task(algo_name):
     kwargs.update(n_steps=6, batch_size=6, n_epochs=1) if algo_name == "PPO" else kwargs.update(
         buffer_size=50, learning_starts=2, batch_size=4)
     getattr(sb3, algo_name)("MlpPolicy", env, **kwargs).learn(6)
+
+
+def test_bc_default_training_is_a_fixed_number_of_updates():
+    """Without ``n_epochs`` one ``learn`` runs about ``default_updates`` gradient steps, whatever the
+    dataset size (a few epochs of a small dataset leave the policy near the mean action)."""
+    eps = collect_episodes(3)
+    n = sum(len(ep["actions"]) for ep in eps)
+    model = BC("MlpPolicy", ToyPickPlaceEnv(), demonstrations=eps, batch_size=16, default_updates=200,
+               policy_kwargs=tiny(), seed=0)
+    model.learn()
+    batches = -(-n // 16)
+    assert model._n_updates == batches * -(-200 // batches) and 200 <= model._n_updates < 200 + batches
+    with pytest.raises(ValueError):
+        BC("MlpPolicy", ToyPickPlaceEnv(), demonstrations=eps, default_updates=0)
