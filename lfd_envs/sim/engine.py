@@ -189,6 +189,7 @@ class ParticleSim:
         self._update_grid_params()
         self._update_tethers()
         self._update_stiffness_scale()
+        self._particle_pass_structs = self._build_particle_pass_structs()
 
     # ================================================================== properties
     @property
@@ -531,19 +532,37 @@ class ParticleSim:
             else:
                 wp.launch(K.solve_constraints, dim=W * cnt, device=dev, inputs=args)
 
-    def _particle_pass(self, sc_on: int, skip_kinematic: int = 0) -> None:
-        W, N, S, B, q = self._W, self._N, self._S, self._B, self.particle_q
+    def _build_particle_pass_structs(self) -> tuple[Any, ...]:
+        """Arguments of :func:`kernels.solve_particles` grouped in its ``wp.struct``s (the arrays
+        live as long as the engine; rebuilt by :meth:`set_params` for the contact parameters)."""
         p = self._params
-        wp.copy(self._q_snap, q, count=W * N)
+        particles = K.ParticleArrays()
+        particles.particles_per_world = self._N
+        particles.positions, particles.snapshot, particles.substep_start = self.particle_q, self._q_snap, self._q_prev
+        particles.inverse_mass, particles.attached_picker = self._w_eff, self._attach
+        particles.radius, particles.friction_displacement = self._radius, self._fric
+        collision = K.SelfCollision()
+        collision.radius = self._sc_r
+        collision.relaxation = p.self_collision_relaxation
+        collision.static_friction, collision.dynamic_friction = p.particle_static_friction, p.particle_dynamic_friction
+        collision.max_neighbors, collision.neighbors, collision.neighbor_count = self._K, self._nbr, self._nbr_count
+        tethers = K.Tethers()
+        tethers.anchor, tethers.length = self._tether_anchor, self._tether_len
+        boxes = K.RigidBoxes()
+        boxes.boxes_per_world, boxes.box_of_particle = self._B, self._box_of
+        boxes.position, boxes.rotation, boxes.half_extents = self._box_pos, self._box_rot, self._box_he
+        boxes.kinematic = self._box_kin
+        static_boxes = K.StaticBoxes()
+        static_boxes.boxes_per_world = self._S
+        static_boxes.position, static_boxes.rotation = self._sbox_pos, self._sbox_rot
+        static_boxes.half_extents = self._sbox_he
+        return particles, collision, tethers, boxes, static_boxes
+
+    def _particle_pass(self, sc_on: int, skip_kinematic: int = 0) -> None:
+        W, N = self._W, self._N
+        wp.copy(self._q_snap, self.particle_q, count=W * N)
         wp.launch(K.solve_particles, dim=self._dim(W * N), device=self._device,
-                  inputs=[N, q, self._q_snap, self._q_prev, self._w_eff, self._attach,
-                          self._radius, self._box_of, sc_on, self._sc_r,
-                          p.self_collision_relaxation, p.particle_static_friction,
-                          p.particle_dynamic_friction, skip_kinematic, self._K,
-                          self._nbr, self._nbr_count, S, self._sbox_pos, self._sbox_rot,
-                          self._sbox_he, B, self._box_pos, self._box_rot, self._box_he,
-                          self._box_kin, self._fric, self._tether_anchor, self._tether_len,
-                          W * N, self._chunk(W * N)])
+                  inputs=[*self._particle_pass_structs, sc_on, skip_kinematic, W * N, self._chunk(W * N)])
 
     def _chunk(self, total: int) -> int:
         """Particles per thread: CPU launches run serially, so one thread loops over all of them
@@ -562,6 +581,7 @@ class ParticleSim:
             raise ValueError("max_neighbors cannot change after construction")
         self._params = params
         self._graph = None
+        self._particle_pass_structs = self._build_particle_pass_structs()
         for w, b in enumerate(self._builders):
             self._write_sc_radius(w, b._export())
         self._update_grid_params()

@@ -401,105 +401,142 @@ def solve_constraints_serial(
             q[j] = xj
 
 
+@wp.struct
+class ParticleArrays:
+    """Per-particle arrays of all worlds for :func:`solve_particles` (flat: world ``w`` owns
+    ``[w * particles_per_world, (w + 1) * particles_per_world)``)."""
+
+    particles_per_world: int
+    positions: wp.array(dtype=wp.vec3)  # solved in place
+    snapshot: wp.array(dtype=wp.vec3)  # positions at the start of the pass (Jacobi partners)
+    substep_start: wp.array(dtype=wp.vec3)  # positions at the start of the substep
+    inverse_mass: wp.array(dtype=float)  # 0 for pinned or picker-held particles
+    attached_picker: wp.array(dtype=wp.int32)  # -1 when free
+    radius: wp.array(dtype=float)  # contact radius against boxes and the ground
+    friction_displacement: wp.array(dtype=wp.vec3)  # accumulated contact corrections
+
+
+@wp.struct
+class SelfCollision:
+    """Particle-particle contacts: radii, neighbour lists and their parameters."""
+
+    radius: wp.array(dtype=float)  # 0: the particle does not self-collide
+    relaxation: float
+    static_friction: float
+    dynamic_friction: float
+    max_neighbors: int
+    neighbors: wp.array(dtype=wp.int32)  # world-local ids, max_neighbors per particle
+    neighbor_count: wp.array(dtype=wp.int32)
+
+
+@wp.struct
+class Tethers:
+    """Per-particle tether to an anchor particle (-1: none) with its maximum length."""
+
+    anchor: wp.array(dtype=wp.int32)
+    length: wp.array(dtype=float)
+
+
+@wp.struct
+class RigidBoxes:
+    """Dynamic rigid boxes of all worlds (``boxes_per_world`` each) and the box of every
+    world-local particle (-1: not part of a box)."""
+
+    boxes_per_world: int
+    position: wp.array(dtype=wp.vec3)
+    rotation: wp.array(dtype=wp.mat33)
+    half_extents: wp.array(dtype=wp.vec3)
+    kinematic: wp.array(dtype=wp.int32)  # held or pinned: does not yield in box-box contacts
+    box_of_particle: wp.array(dtype=wp.int32)
+
+
+@wp.struct
+class StaticBoxes:
+    """Static boxes of all worlds (``boxes_per_world`` each; zero half extents: unused slot)."""
+
+    boxes_per_world: int
+    position: wp.array(dtype=wp.vec3)
+    rotation: wp.array(dtype=wp.mat33)
+    half_extents: wp.array(dtype=wp.vec3)
+
+
 @wp.kernel
 def solve_particles(
-    num_particles: int,
-    q: wp.array(dtype=wp.vec3),
-    q_snap: wp.array(dtype=wp.vec3),
-    q_prev: wp.array(dtype=wp.vec3),
-    w_eff: wp.array(dtype=float),
-    attach: wp.array(dtype=wp.int32),
-    radius: wp.array(dtype=float),
-    box_of: wp.array(dtype=wp.int32),
+    particles: ParticleArrays,
+    collision: SelfCollision,
+    tethers: Tethers,
+    boxes: RigidBoxes,
+    static_boxes: StaticBoxes,
     sc_on: int,
-    sc_r: wp.array(dtype=float),
-    sc_relax: float,
-    sc_mu_s: float,
-    sc_mu_k: float,
     skip_kinematic: int,
-    max_nbr: int,
-    nbr: wp.array(dtype=wp.int32),
-    nbr_count: wp.array(dtype=wp.int32),
-    num_static: int,
-    sbox_pos: wp.array(dtype=wp.vec3),
-    sbox_rot: wp.array(dtype=wp.mat33),
-    sbox_he: wp.array(dtype=wp.vec3),
-    num_boxes: int,
-    box_pos: wp.array(dtype=wp.vec3),
-    box_rot: wp.array(dtype=wp.mat33),
-    box_he: wp.array(dtype=wp.vec3),
-    box_kin: wp.array(dtype=wp.int32),
-    fric: wp.array(dtype=wp.vec3),
-    tether_anchor: wp.array(dtype=wp.int32),
-    tether_len: wp.array(dtype=float),
     total: int,
     chunk: int,
 ):
-    """Per-particle pass (Jacobi: partners are read from the snapshot ``q_snap``, each particle
+    """Per-particle pass (Jacobi: partners are read from ``particles.snapshot``, each particle
     writes only itself): self-collision pairs, tethers, rigid boxes, ground and static boxes
     (with continuous collision against the substep start), friction bookkeeping."""
     tid = wp.tid()
     for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
-        wi = w_eff[i]
-        if wi == 0.0 and (attach[i] < 0 or skip_kinematic != 0):
+        wi = particles.inverse_mass[i]
+        if wi == 0.0 and (particles.attached_picker[i] < 0 or skip_kinematic != 0):
             continue  # pinned (or, in a release relaxation, any kinematic particle)
-        w = i // num_particles
-        li = i - w * num_particles
-        base = w * num_particles
-        x = q[i]
-        r = radius[i]
+        w = i // particles.particles_per_world
+        li = i - w * particles.particles_per_world
+        base = w * particles.particles_per_world
+        x = particles.positions[i]
+        r = particles.radius[i]
         if wi > 0.0:
             if sc_on != 0:
-                ri = sc_r[i]
+                ri = collision.radius[i]
                 if ri > 0.0:
-                    off = i * max_nbr
-                    xpi = q_prev[i]
-                    for tn in range(nbr_count[i]):
-                        j = base + nbr[off + tn]
-                        wj = w_eff[j]
-                        dmin = ri + sc_r[j]
-                        d = x - q_snap[j]
+                    off = i * collision.max_neighbors
+                    xpi = particles.substep_start[i]
+                    for tn in range(collision.neighbor_count[i]):
+                        j = base + collision.neighbors[off + tn]
+                        wj = particles.inverse_mass[j]
+                        dmin = ri + collision.radius[j]
+                        d = x - particles.snapshot[j]
                         l2 = wp.dot(d, d)
                         if l2 < dmin * dmin and l2 > 1.0e-18:
                             l = wp.sqrt(l2)
-                            x = x + d * (sc_relax * (dmin - l) / l * wi / (wi + wj))
-                            if sc_mu_s > 0.0 or sc_mu_k > 0.0:
+                            x = x + d * (collision.relaxation * (dmin - l) / l * wi / (wi + wj))
+                            if collision.static_friction > 0.0 or collision.dynamic_friction > 0.0:
                                 pen = dmin - l
                                 share = wi / (wi + wj)
                                 n = d / l
                                 # position-based Coulomb friction (Macklin et al. 2014): remove
                                 # (part of) the tangential displacement relative to the partner
-                                dr = (x - xpi) - (q_snap[j] - q_prev[j])
+                                dr = (x - xpi) - (particles.snapshot[j] - particles.substep_start[j])
                                 dtan = dr - wp.dot(dr, n) * n
                                 dtl = wp.length(dtan)
                                 if dtl > 1.0e-12:
-                                    if dtl > sc_mu_s * pen:
-                                        dtan = dtan * wp.min(1.0, sc_mu_k * pen / dtl)
+                                    if dtl > collision.static_friction * pen:
+                                        dtan = dtan * wp.min(1.0, collision.dynamic_friction * pen / dtl)
                                     x = x - dtan * share
-            ta = tether_anchor[i]
+            ta = tethers.anchor[i]
             if ta >= 0:
-                d = x - q_snap[ta]
+                d = x - particles.snapshot[ta]
                 l = wp.length(d)
-                tl = tether_len[i]
+                tl = tethers.length[i]
                 if l > tl:
                     x = x - d * ((l - tl) / l)
         x0 = x  # contact corrections from here on feed the friction model
         if wi > 0.0:
             # dynamic rigid boxes (one-way for cloth/rope, half-half between boxes)
-            mybox = box_of[li]
+            mybox = boxes.box_of_particle[li]
             mykin = int(0)
             if mybox >= 0:
-                mykin = box_kin[w * num_boxes + mybox]
-            for b in range(num_boxes):
+                mykin = boxes.kinematic[w * boxes.boxes_per_world + mybox]
+            for b in range(boxes.boxes_per_world):
                 if b != mybox:
-                    kb = w * num_boxes + b
-                    xn = box_contact(x, x, r, box_pos[kb], box_rot[kb], box_he[kb], 0)
+                    kb = w * boxes.boxes_per_world + b
+                    xn = box_contact(x, x, r, boxes.position[kb], boxes.rotation[kb], boxes.half_extents[kb], 0)
                     if mybox >= 0:
                         # box-box: split the correction; a held/pinned box does not yield
                         f = float(0.5)
-                        if box_kin[kb] != 0 and mykin == 0:
+                        if boxes.kinematic[kb] != 0 and mykin == 0:
                             f = 1.0
-                        elif mykin != 0 and box_kin[kb] == 0:
+                        elif mykin != 0 and boxes.kinematic[kb] == 0:
                             f = 0.0
                         x = x + f * (xn - x)
                     else:
@@ -507,15 +544,15 @@ def solve_particles(
         # ground and static boxes
         if x[2] < r:
             x = wp.vec3(x[0], x[1], r)
-        if num_static > 0:
-            xp = q_prev[i]
-            for s in range(num_static):
-                ks = w * num_static + s
-                he = sbox_he[ks]
+        if static_boxes.boxes_per_world > 0:
+            xp = particles.substep_start[i]
+            for s in range(static_boxes.boxes_per_world):
+                ks = w * static_boxes.boxes_per_world + s
+                he = static_boxes.half_extents[ks]
                 if he[0] > 0.0:
-                    x = box_contact(x, xp, r, sbox_pos[ks], sbox_rot[ks], he, 1)
-        fric[i] = fric[i] + (x - x0)
-        q[i] = x
+                    x = box_contact(x, xp, r, static_boxes.position[ks], static_boxes.rotation[ks], he, 1)
+        particles.friction_displacement[i] = particles.friction_displacement[i] + (x - x0)
+        particles.positions[i] = x
 
 
 @wp.kernel
