@@ -259,17 +259,6 @@ def test_reuse_transitions_rewards_and_actions():
     assert buf.reuse_transitions({**traj, "qpos": qpos[:4], "rewards": rewards[:3]}) == []  # k ≤ 3
 
 
-@pytest.fixture
-def one_torch_thread():
-    """Tiny networks: a single thread avoids oversubscription on a loaded 2-core machine."""
-    import torch
-
-    n = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(n)
-
-
 def test_mopa_sac_and_td3_run_and_store_k_step_transitions(one_torch_thread):
     env = MoPAWrapper(WallPointEnv(horizon=60), dq_mp=1.0, omega=0.5, range=0.2, time_limit=0.2)
     model = MoPASAC("MlpPolicy", env, reward_scale=0.2, reuse=5, gamma=0.95, learning_starts=50, batch_size=32,

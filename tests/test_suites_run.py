@@ -56,17 +56,6 @@ def test_covering_set_names_every_agent_and_env():
     assert all(c.agent_kwargs.get("device") == "cpu" for c in chosen if c.agent not in ("random", "expert", "zero"))
 
 
-@pytest.fixture
-def one_torch_thread():
-    """One torch thread: these tiny networks run 3x faster than with threads fighting for shared cores."""
-    import torch
-
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
-
-
 @pytest.mark.slow
 @pytest.mark.timeout(600)
 def test_every_agent_and_env_of_every_suite_runs(tmp_path, one_torch_thread):
