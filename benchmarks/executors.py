@@ -65,18 +65,25 @@ def _error(exc: BaseException) -> str:
 
 def run_serial(cells: list[Any], done: Done, *, demo_cache: Path | None, progress: bool = True) -> None:
     """Run ``cells`` one after another in this process."""
+    import torch
     from tqdm import tqdm
 
     from benchmarks.run import run_cell
 
     failures = []
+    threads = torch.get_num_threads()
     for cell in tqdm(cells, desc="cells", disable=not progress, file=sys.stderr):
+        # the cell's own core count: more torch threads than cores make tiny networks crawl
+        # (threads wait for each other whenever another process holds a core)
+        torch.set_num_threads(max(1, int(getattr(cell, "cpus", 1))))
         try:
             result = run_cell(cell, progress=progress, demo_cache=demo_cache)
         except Exception as exc:  # report, keep going: the other cells are independent
             traceback.print_exc(file=sys.stderr)
             failures.append(CellFailure(cell, _error(exc)))
             continue
+        finally:
+            torch.set_num_threads(threads)
         done(cell, result)
     if failures:
         raise CellsFailed(failures)

@@ -75,3 +75,19 @@ def test_ray_executor_runs_a_tiny_suite(tmp_path):
         assert [f.stat().st_mtime_ns for f in files] == mtimes
     finally:
         ray.shutdown()
+
+
+def test_serial_cells_run_on_their_own_core_count(monkeypatch):
+    """Each serial cell runs with as many torch threads as it asks cores for (default 1); more
+    threads than cores on a shared machine make small networks many times slower."""
+    import torch
+
+    from benchmarks import executors
+
+    seen = []
+    monkeypatch.setattr(bench, "run_cell", lambda cell, **_: seen.append(torch.get_num_threads()) or {})
+    cells = [bench.Cell(suite="t", env_id="ThreeBoxes-v0", env_kwargs={}, agent="zero", agent_kwargs={}, seed=0,
+                        budget=1, eval_episodes=1, cpus=c) for c in (1, 2)]
+    before = torch.get_num_threads()
+    executors.run_serial(cells, lambda cell, result: None, demo_cache=None, progress=False)
+    assert seen == [1, 2] and torch.get_num_threads() == before
