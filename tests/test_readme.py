@@ -29,3 +29,10 @@ def test_agents_example_runs(tmp_path, monkeypatch):
 
 def test_quick_start_is_short():
     assert len(_block("import gymnasium as gym\nfrom lfd_envs.experts").strip().splitlines()) <= 11
+
+
+def test_video_example_records_an_mp4(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    exec(compile(_block("import gymnasium as gym  # records videos"), "README-video", "exec"), {})
+    videos = list((tmp_path / "videos").glob("*.mp4"))
+    assert videos and videos[0].stat().st_size > 1000
