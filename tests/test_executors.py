@@ -78,16 +78,23 @@ def test_ray_executor_runs_a_tiny_suite(tmp_path):
 
 
 def test_serial_cells_run_on_their_own_core_count(monkeypatch):
-    """Each serial cell runs with as many torch threads as it asks cores for (default 1); more
-    threads than cores on a shared machine make small networks many times slower."""
+    """Each serial cell runs with as many torch threads as it asks cores for (default 1; more
+    threads than cores on a shared machine make small networks many times slower) and with float
+    subnormals flushed to zero; both settings are restored afterwards."""
     import torch
 
     from benchmarks import executors
 
     seen = []
-    monkeypatch.setattr(bench, "run_cell", lambda cell, **_: seen.append(torch.get_num_threads()) or {})
+
+    def fake_run_cell(cell, **_):
+        seen.append((torch.get_num_threads(), executors.flush_denormals_enabled()))
+        return {}
+
+    monkeypatch.setattr(bench, "run_cell", fake_run_cell)
     cells = [bench.Cell(suite="t", env_id="ThreeBoxes-v0", env_kwargs={}, agent="zero", agent_kwargs={}, seed=0,
                         budget=1, eval_episodes=1, cpus=c) for c in (1, 2)]
-    before = torch.get_num_threads()
+    before = torch.get_num_threads(), executors.flush_denormals_enabled()
     executors.run_serial(cells, lambda cell, result: None, demo_cache=None, progress=False)
-    assert seen == [1, 2] and torch.get_num_threads() == before
+    assert seen == [(1, True), (2, True)]  # subnormals flushed while cells train
+    assert (torch.get_num_threads(), executors.flush_denormals_enabled()) == before
