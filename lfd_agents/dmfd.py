@@ -381,8 +381,9 @@ class DMfD(OffPolicyAlgorithm):
             size = sum(len(ep) for ep in episodes) + (self.demo_buffer.size() if self.demo_buffer else 0)
             old = self.demo_buffer
             cls = DictReplayBuffer if isinstance(self.observation_space, spaces.Dict) else ReplayBuffer
+            # time-limit ends are not terminal, exactly as in the online replay buffer
             self.demo_buffer = cls(max(size, 1), self.observation_space, self.action_space, device=self.device,
-                                   n_envs=1, handle_timeout_termination=False)
+                                   n_envs=1, handle_timeout_termination=True)
             if old is not None:
                 _copy_buffer(old, self.demo_buffer)
             n = fill_replay_buffer(self.demo_buffer, episodes)

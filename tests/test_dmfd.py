@@ -290,6 +290,7 @@ def test_demo_ratio_keeps_demonstrations_in_every_batch(demos):
         return float(np.mean(np.abs(obs[:, None] - demo_obs[None]).max(-1).min(1) < 1e-6))
 
     assert demo_share(model.sample_batch(64)) == 1.0
+    assert float(model.demo_buffer.sample(512).dones.sum()) == 0.0  # time-limit ends are not terminal
     model.learn(200)
     assert model.replay_buffer.size() == 200
     batch = model.sample_batch(64)
