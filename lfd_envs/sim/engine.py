@@ -415,8 +415,10 @@ class ParticleSim:
                           self.picker_q, self._events, self._N, P,
                           float(self._params.grasp_radius),
                           int(self._params.grasp_mode == "closest")])
+        held = self._holding
         self._update_holding()
-        self._update_tethers()
+        if release.any() or not np.array_equal(held, self._holding):  # a missed grasp changes nothing
+            self._update_tethers()
         if release.any() and self._params.release_relaxation > 0:
             self._relax(release.any(axis=1))
 
