@@ -39,7 +39,9 @@ class MoPAAgent:
         env: the plain task env (its ``spec.id`` selects :data:`MOPA_DEFAULTS`).
         seed: agent seed.
         algo: ``"sac"`` (default) or ``"td3"`` (ablation).
-        wrapper_kwargs: :class:`MoPAWrapper` overrides (ablations, planner time limit ...).
+        wrapper_kwargs: :class:`MoPAWrapper` overrides (ablations, planner time limit ...); the
+            planners (training and :meth:`bind`) are seeded with ``seed`` unless
+            ``planner_kwargs`` names another seed or a ready ``planner`` is given.
         **agent_kwargs: :class:`MoPASAC` arguments (reward_scale, reuse, SB3 SAC arguments).
     """
 
@@ -49,6 +51,10 @@ class MoPAAgent:
             raise ValueError(f"algo must be 'sac' or 'td3', got {algo!r}")
         self.env_id = env.spec.id if env.spec is not None else type(env.unwrapped).__name__
         self.wrapper_kwargs = dict(wrapper_kwargs or {})
+        if "planner" not in self.wrapper_kwargs:  # seeded planners: paths independent of earlier runs
+            planner_kwargs = dict(self.wrapper_kwargs.get("planner_kwargs") or {})
+            planner_kwargs.setdefault("seed", int(seed))
+            self.wrapper_kwargs["planner_kwargs"] = planner_kwargs
         self.train_env = make_mopa_env(env, **self.wrapper_kwargs)
         kwargs = mopa_agent_kwargs(self.env_id)
         kwargs.update(verbose=0, device="cpu", buffer_size=100_000)

@@ -25,6 +25,19 @@ collector cannot see). ``ompl`` 2.0.1 does not expose nanobind's ``set_leak_warn
 module releases the OMPL objects of every live planner in an ``atexit`` hook (which runs
 before nanobind's check); :meth:`OMPLPlanner.close` does the same for one planner. OMPL's own
 console log is lowered to errors (``log_level`` argument).
+
+Determinism: OMPL draws all randomness from RNG objects that take their seeds, when they are
+created, from one process-global seed generator, so by default a path depends on every OMPL
+object created before in the process. ``ompl.util.RNG.setSeed`` re-seeds that generator even
+after first use (OMPL then logs "Changing seed now will not lead to deterministic sampling",
+which is only true of the RNGs already created). A planner built with ``seed`` therefore
+re-seeds the generator before each of its OMPL queries, with a seed drawn from
+``(seed, query index)``, before the objects of that query are created (the sampler is made
+anew after every ``clear``; the search structures, the path simplifier and RRT*'s own RNG
+are made at the first query). Its ``k``-th query then gives the same path whatever ran before
+in the process, as long as the search ends within its time limit (a time-limited failure, and
+RRT*'s anytime result, depend on the machine's speed). Unseeded planners keep OMPL's
+behaviour.
 """
 
 from __future__ import annotations
@@ -37,7 +50,8 @@ from typing import Callable
 
 import numpy as np
 
-__all__ = ["OMPLPlanner", "PlanResult", "PLANNER_ALGORITHMS", "straight_line", "densify", "ompl_available"]
+__all__ = ["OMPLPlanner", "PlanResult", "PLANNER_ALGORITHMS", "straight_line", "densify", "ompl_available",
+           "query_seed"]
 
 #: algorithm name -> OMPL geometric planner class name
 PLANNER_ALGORITHMS = {"rrt_connect": "RRTConnect", "rrt_star": "RRTstar"}
@@ -137,7 +151,9 @@ class OMPLPlanner:
         interpolate_first: try the straight line before planning (default True).
         max_attempts: OMPL queries per plan when a solution fails the final segment check
             (all within ``time_limit``).
-        seed: seed for OMPL's global RNG (only effective before OMPL first samples).
+        seed: seed of this planner's OMPL queries: with a seed, the ``k``-th OMPL query gives
+            the same path whatever ran before in the process (module docstring); ``None``
+            leaves OMPL's process-global randomness as it is.
         log_level: OMPL console log level name (``"error"`` by default; ``"info"`` is OMPL's).
     """
 
@@ -189,11 +205,12 @@ class OMPLPlanner:
         self.simplify_time = float(simplify_time)
         self.interpolate_first = bool(interpolate_first)
         self.max_attempts = max(1, int(max_attempts))
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
+            raise ValueError(f"seed must be a non-negative integer or None, got {seed!r}")
         self._set_log_level(log_level)
-        if seed is not None:
-            from ompl import util as ou
-
-            ou.RNG.setSeed(int(seed))
+        self.seed = None if seed is None else int(seed)
+        #: OMPL queries run so far (the index that, with ``seed``, seeds the next one)
+        self.ompl_queries = 0
         self._offset = np.zeros(self.dim)
         self._ss = self._simplifier = None
         self.stats = {"calls": 0, "interpolation": 0, "planner": 0, "failed": 0, "invalid": 0, "time": 0.0}
@@ -352,6 +369,9 @@ class OMPLPlanner:
 
     def _solve(self, start: np.ndarray, goal: np.ndarray, time_limit: float, deadline: float) -> np.ndarray | None:
         """Run OMPL; returns the ``(n, d)`` solution including start and goal, or None."""
+        if self.seed is not None:
+            _seed_ompl(query_seed(self.seed, self.ompl_queries))
+        self.ompl_queries += 1
         ss = self._ss or self._setup()
         self._offset = np.where(self.unlimited, start, 0.0)
         ss.clear()
@@ -384,6 +404,24 @@ class OMPLPlanner:
     def offset(self) -> np.ndarray:
         """Offset added to OMPL states to get joint coordinates (non-zero on unlimited joints)."""
         return self._offset
+
+
+def query_seed(seed: int, index: int) -> int:
+    """OMPL seed (1 .. 2³¹−1; OMPL refuses 0) of query ``index`` of a planner seeded ``seed``."""
+    state = np.random.SeedSequence([int(seed), int(index)]).generate_state(1, dtype=np.uint32)[0]
+    return int(state) % (2**31 - 1) + 1
+
+
+def _seed_ompl(value: int) -> None:
+    """Re-seed OMPL's process-global seed generator, without its "already started" log line."""
+    from ompl import util as ou
+
+    level = ou.getLogLevel()
+    ou.setLogLevel(ou.LOG_NONE)
+    try:
+        ou.RNG.setSeed(int(value))
+    finally:
+        ou.setLogLevel(level)
 
 
 def _unchecked(is_valid: Callable[[np.ndarray], bool]) -> Callable[[np.ndarray], bool]:
