@@ -18,7 +18,7 @@ import torch as th
 from stable_baselines3.common.logger import configure
 
 from dmfd_toy_env import ToyPickPlaceEnv, collect_episodes
-from lfd_agents import AWAC, DMfD, SACLfD
+from lfd_agents import AWAC, BC, DMfD, SACLfD
 
 th.set_num_threads(1)
 
@@ -67,8 +67,24 @@ def _fingerprint(module: th.nn.Module) -> list[float]:
     return [float(flat.sum()), float((flat ** 2).sum()), float(flat.abs().sum())]
 
 
+def _trace_bc() -> dict[str, list[float]]:
+    """BC: the loss of each of 3 epochs (3 batches each) and the final fingerprint."""
+    model = BC("MlpPolicy", ToyPickPlaceEnv(), demonstrations=collect_episodes(3), batch_size=32,
+               policy_kwargs=dict(net_arch=[64, 64]), seed=0)
+    th.manual_seed(11)
+    np.random.seed(11)
+    out: dict[str, list[float]] = {"train/bc_loss": []}
+    for _ in range(3):
+        model.learn(epochs=1, log_interval=0)
+        out["train/bc_loss"].append(float(model.logger.name_to_value["train/bc_loss"]))
+    out["fp/actor"] = _fingerprint(model.policy)
+    return out
+
+
 def trace(name: str) -> dict[str, list[float]]:
     """Logged values after each of 6 single updates and one 3-update call, and final fingerprints."""
+    if name == "bc":
+        return _trace_bc()
     model = _build(name)
     model.set_logger(configure(None, []))
     th.manual_seed(11)
@@ -276,10 +292,17 @@ REFERENCE: dict[str, dict[str, list[float]]] = {
         ],
         "train/learning_rate": [0.0003, 0.0003, 0.0003, 0.0003, 0.0003, 0.0003, 0.0003],
     },
+    "bc": {
+        "fp/actor": [-4.596903201600071, 47.3275365662675, 367.1177048231475],
+        "train/bc_loss": [0.6436807513237, 0.5890331864356995, 0.539328396320343],
+    },
 }
 
 
-@pytest.mark.parametrize("name", ["dmfd", "dmfd_target_entropy_demo_ratio", "dmfd_image", "awac", "sac_lfd"])
+CASES = ["dmfd", "dmfd_target_entropy_demo_ratio", "dmfd_image", "awac", "sac_lfd", "bc"]
+
+
+@pytest.mark.parametrize("name", CASES)
 def test_update_step_reproduces_reference_values(name):
     got = trace(name)
     ref = REFERENCE[name]
@@ -291,5 +314,4 @@ def test_update_step_reproduces_reference_values(name):
 if __name__ == "__main__":  # print the reference table (run with the reference implementation)
     import json
 
-    print(json.dumps({n: trace(n) for n in ["dmfd", "dmfd_target_entropy_demo_ratio", "dmfd_image", "awac",
-                                            "sac_lfd"]}, indent=1))
+    print(json.dumps({n: trace(n) for n in CASES}, indent=1))
