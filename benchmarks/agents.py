@@ -20,7 +20,7 @@ DEFAULT_RESULTS = Path(__file__).resolve().parent / "results"  #: default --out 
 
 
 class RandomAgent:
-    """Uniform random actions; the lower reference row of every table."""
+    """Uniform random actions (agent ``random_uniform``; ``random`` outside pick-and-place)."""
 
     needs_training = False
 
@@ -33,6 +33,51 @@ class RandomAgent:
 
     def predict(self, obs: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True):
         return self.action_space.sample(), None
+
+
+def uses_pick_place(env: gym.Env) -> bool:
+    """Whether ``env`` is a particle task in pick-and-place mode (MAIL's action space)."""
+    base = env.unwrapped
+    return getattr(base, "action_mode", None) == "pick_place" and hasattr(base, "batch")
+
+
+class PickPlaceRandomAgent:
+    """MAIL's random agent for pick-and-place particle envs: every step picks a random particle
+    (the task's own random pick, e.g. a cloth particle) and places it at a random point
+    (:class:`lfd_envs.experts.random_pick_place.RandomPickPlacePolicy`). Uniform random
+    pick-and-place actions mostly grasp air; this is the random row MAIL reports.
+
+    The moves depend only on ``(seed, reset seed, variant)`` of each episode.
+    """
+
+    needs_training = False
+
+    def __init__(self, env: gym.Env, seed: int = 0):
+        if not uses_pick_place(env):
+            raise ValueError(f"PickPlaceRandomAgent needs a particle env in pick_place mode, got {env}")
+        self.seed = int(seed)
+        self.bind(env)
+
+    def bind(self, env: gym.Env) -> None:
+        """Read the privileged particle state from ``env`` (the evaluation env)."""
+        from lfd_envs.experts.random_pick_place import RandomPickPlacePolicy
+
+        self._policy = RandomPickPlacePolicy(env, seed=self.seed)
+
+    def reset(self) -> None:
+        self._policy.reset()
+
+    def learn(self, total_timesteps: int, **_: Any) -> "PickPlaceRandomAgent":
+        return self
+
+    def predict(self, obs: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True):
+        return self._policy.predict(obs)[0], None
+
+
+def random_agent(env: gym.Env, seed: int = 0, **_: Any) -> RandomAgent | PickPlaceRandomAgent:
+    """The ``random`` reference row: MAIL's random (:class:`PickPlaceRandomAgent`) in
+    pick-and-place particle envs, uniform random actions (:class:`RandomAgent`) elsewhere."""
+    return PickPlaceRandomAgent(env, seed) if uses_pick_place(env) else RandomAgent(env, seed)
 
 
 class ZeroAgent:
@@ -149,12 +194,13 @@ def _named_factory(module: str, name: str) -> AgentFactory:
 
 def _lfd_demo_agent(class_name: str) -> AgentFactory:
     def factory(env: gym.Env, seed: int = 0, demo_episodes: int = 20, demo_cache: str | Path | None = None,
-                **kwargs: Any):
+                demo_policy: str = "expert", demo_policy_kwargs: dict[str, Any] | None = None, **kwargs: Any):
         from benchmarks.demo_cache import CACHE_DIRNAME, demonstrations_for
 
         cls = getattr(importlib.import_module("lfd_agents"), class_name)
         cache = Path(demo_cache) if demo_cache is not None else DEFAULT_RESULTS / CACHE_DIRNAME
-        demos = demonstrations_for(env, int(demo_episodes), cache)
+        demos = demonstrations_for(env, int(demo_episodes), cache, policy=demo_policy,
+                                   policy_kwargs=demo_policy_kwargs)
         kwargs.setdefault("device", "cpu")
         policy = _policy_name(env)
         if getattr(cls.policy_aliases.get(policy), "__module__", "").startswith("stable_baselines3"):
@@ -162,15 +208,22 @@ def _lfd_demo_agent(class_name: str) -> AgentFactory:
             kwargs["policy_kwargs"] = {**_image_extractor_kwargs(env), **dict(kwargs.get("policy_kwargs") or {})}
         agent = cls(policy, env, demonstrations=str(demos.path), seed=seed, **kwargs)
         agent.demo_transitions = demos.transitions
+        agent.demo_performance = demos.mean_final_performance
         return agent
 
-    factory.__doc__ = f"lfd_agents.{class_name} with `demo_episodes` expert demonstrations (cached)."
+    factory.__doc__ = (f"lfd_agents.{class_name} with `demo_episodes` demonstrations (cached) of `demo_policy` "
+                       "(default the scripted expert; `noisy_expert` with `demo_policy_kwargs` {'epsilon': ...} "
+                       "for lower-quality ones).")
     factory.uses_demo_cache = True  # the harness passes demo_cache=<out>/_demos
     return factory
 
 
+#: built-in agents that are scripted references, not learners (no device, never "baselines")
+REFERENCE_AGENTS = ("expert", "random", "random_uniform", "zero")
+
 BUILTIN_AGENTS: dict[str, AgentFactory] = {
-    "random": lambda env, seed=0, **kw: RandomAgent(env, seed),
+    "random": random_agent,
+    "random_uniform": lambda env, seed=0, **kw: RandomAgent(env, seed),
     "zero": lambda env, seed=0, **kw: ZeroAgent(env, seed),
     "expert": lambda env, seed=0, **kw: ExpertAgent(env, seed, **kw),
     "sac": _sb3("SAC"),

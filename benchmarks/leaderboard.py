@@ -1,7 +1,9 @@
 """Turn the per-cell JSON results into ``leaderboard.md`` with its plots.
 
 Per env: the thesis table (25th percentile, mean ± std, median, 75th percentile of p̂(H)),
-IQM and mean with rliable's bootstrap CIs, what each agent spent (env steps, gradient updates,
+IQM and mean with rliable's bootstrap CIs, the quality measures an env reports besides p̂
+(``final_metrics`` of a cell, e.g. the diagonal folds' ``fold_quality``; results written before
+they were recorded show a dash), what each agent spent (env steps, gradient updates,
 demonstration transitions), reference rows a suite reports from the literature, the suite's
 notes, learning curves and the probability that DMfD improves on each baseline. Across envs:
 IQM / mean interval estimates and performance profiles. Files are written atomically.
@@ -19,13 +21,17 @@ from typing import Any
 import numpy as np
 
 from benchmarks import plots
+from benchmarks.agents import REFERENCE_AGENTS as _REFERENCE_AGENTS
+from benchmarks.run import REPORTED_METRICS
 from benchmarks.stats import iqm_and_mean, performance_profiles, probability_of_improvement, summarize
 from benchmarks.storage import CorruptResult, atomic_write_text, read_result, result_files
 
 HEADER = ("| agent | seeds | episodes | 25th pct | mean ± std | median | 75th pct | IQM [95% CI] "
           "| env steps | gradient updates | demo transitions | train wall time |")
+#: position of the env-steps column in a split row (``row.split("|")``)
+_ENV_STEPS_COLUMN = HEADER.split("|").index(" env steps ")
 #: agents that are references, not learners (never "baselines" of a comparison)
-REFERENCE_AGENTS = ("expert", "random", "zero")
+REFERENCE_AGENTS = _REFERENCE_AGENTS
 #: the agent compared against every baseline with the probability of improvement
 IMPROVER = "dmfd"
 
@@ -86,13 +92,35 @@ def _budget(runs: list[dict[str, Any]], key: str) -> str:
     return "?"
 
 
-def agent_row(agent: str, runs: list[dict[str, Any]]) -> tuple[str, dict[str, float]]:
-    """Markdown row and summary numbers for one agent on one env."""
+def reported_metrics(agents: dict[str, list[dict[str, Any]]]) -> list[str]:
+    """The :data:`~benchmarks.run.REPORTED_METRICS` that some cell of an env recorded (in order)."""
+    have = {k for runs in agents.values() for r in runs for k in r.get("final_metrics", {})}
+    return [k for k in REPORTED_METRICS if k in have]
+
+
+def header(metrics: list[str] = ()) -> str:
+    """Table header with one ``<metric> mean ± std`` column per reported metric after p̂'s columns."""
+    extra = "".join(f" {REPORTED_METRICS[k]} mean ± std |" for k in metrics)
+    return HEADER.replace(" IQM [95% CI] |", " IQM [95% CI] |" + extra, 1)
+
+
+def _metric_cell(runs: list[dict[str, Any]], key: str) -> str:
+    """``mean ± std`` of a reported metric over every episode of ``runs``; ``—`` unless every run has it
+    (results written before the metric was recorded, or an agent whose env lacks it)."""
+    if not all(key in r.get("final_metrics", {}) for r in runs):
+        return "—"
+    v = np.concatenate([np.asarray(r["final_metrics"][key], dtype=float) for r in runs])
+    return f"{v.mean():.3f} ± {v.std():.3f}"
+
+
+def agent_row(agent: str, runs: list[dict[str, Any]], metrics: list[str] = ()) -> tuple[str, dict[str, float]]:
+    """Markdown row and summary numbers for one agent on one env (``metrics``: extra columns)."""
     values = np.concatenate([np.asarray(r["final_normalized_performance"], dtype=float) for r in runs])
     s = summarize(values)
     wall = float(np.mean([r.get("train_wall_time_s", 0.0) for r in runs]))
+    extra = "".join(f" {_metric_cell(runs, k)} |" for k in metrics)
     row = (f"| {agent} | {len(runs)} | {s.n} | {s.p25:.3f} | {s.mean:.3f} ± {s.std:.3f} | {s.median:.3f} | "
-           f"{s.p75:.3f} | {s.iqm:.3f} [{s.iqm_ci_low:.3f}, {s.iqm_ci_high:.3f}] | "
+           f"{s.p75:.3f} | {s.iqm:.3f} [{s.iqm_ci_low:.3f}, {s.iqm_ci_high:.3f}] |{extra} "
            f"{_budget(runs, 'env_steps')} | {_budget(runs, 'gradient_updates')} | "
            f"{_budget(runs, 'demo_transitions')} | {_fmt_time(wall)} |")
     return row, s.as_dict()
@@ -103,12 +131,13 @@ def _num(row: dict[str, Any], key: str) -> str:
     return f"{float(v):.3f}" if isinstance(v, (int, float)) else "—"
 
 
-def reference_row(agent: str, source: str, row: dict[str, Any]) -> str:
+def reference_row(agent: str, source: str, row: dict[str, Any], metrics: list[str] = ()) -> str:
     """A row of numbers reported elsewhere (``source``), labelled e.g. ``*thesis: dmfd*``."""
     prefix = source.split()[0] if source.strip() else "reported"
     mean = _num(row, "mean") + (f" ± {_num(row, 'std')}" if "std" in row else "")
+    extra = " — |" * len(metrics)
     return (f"| *{prefix}: {agent}* | — | — | {_num(row, 'p25')} | {mean} | {_num(row, 'median')} | "
-            f"{_num(row, 'p75')} | — | — | — | — | — |")
+            f"{_num(row, 'p75')} | — |{extra} — | — | — | — |")
 
 
 def references_for(suite_config: dict[str, Any] | None, env_label: str, env_id: str) -> dict[str, Any] | None:
@@ -174,7 +203,8 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
         "interquartile mean with a 95% stratified-bootstrap CI (rliable). Budget columns are what training "
         "spent: steps in the training env, gradient updates, and demonstration transitions learnt from "
         "(BC: epochs × ⌈dataset size / batch size⌉ updates, no env steps). `expert` is the scripted oracle, `random` "
-        "uniform random actions, `zero` the all-zero action. Rows in *italics* are numbers reported "
+        "random actions (in pick-and-place: a random particle picked and placed at a random point, MAIL's random; "
+        "`random_uniform`: uniform random actions), `zero` the all-zero action. Rows in *italics* are numbers reported "
         "elsewhere (source under the table), not measured here.",
         "",
     ]
@@ -187,17 +217,24 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
         env_id = next(iter(agents.values()))[0]["cell"]["env_id"]
         ref = references_for(suite_config, env_label, env_id)
         ref_rows = dict(ref["rows"]) if ref else {}
-        lines += [f"## {env_label}", "", HEADER, _sep()]
-        order = sorted(agents, key=lambda a: (a != "expert", a in ("random", "zero"), a))
+        metrics = reported_metrics(agents)
+        head = header(metrics)
+        lines += [f"## {env_label}", "", head, _sep(head)]
+        order = sorted(agents, key=lambda a: (a != "expert", a in REFERENCE_AGENTS, a))
         for agent in order:
-            row = agent_row(agent, agents[agent])[0]
-            legacy |= "*" in row.split("|")[9]
+            row = agent_row(agent, agents[agent], metrics)[0]
+            legacy |= "*" in row.split("|")[_ENV_STEPS_COLUMN + len(metrics)]
             lines.append(row)
             if agent in ref_rows:
-                lines.append(reference_row(agent, ref["source"], ref_rows.pop(agent)))
+                lines.append(reference_row(agent, ref["source"], ref_rows.pop(agent), metrics))
         for agent, numbers in ref_rows.items():
-            lines.append(reference_row(agent, ref["source"], numbers))
+            lines.append(reference_row(agent, ref["source"], numbers, metrics))
         lines.append("")
+        if metrics:
+            lines += ["Beside p̂ (the task's published metric): " + "; ".join(
+                f"{REPORTED_METRICS[k]} = `info[\"{k}\"]` at the end of each episode" for k in metrics)
+                + " (1 = perfect, 0 = the start), a measure that crumpling the cloth cannot fool "
+                "(see the task's documentation).", ""]
         if ref:
             lines += [f"Reference rows: {ref.get('source', 'unknown source')}.", ""]
         notes = sorted({r["cell"].get("tags", {}).get("notes") for runs in agents.values() for r in runs} - {None})
@@ -251,8 +288,8 @@ def _aggregate_section(table: dict[str, dict[str, list[dict[str, Any]]]], suite:
     return lines
 
 
-def _sep() -> str:
-    return "|" + "---|" * (HEADER.count("|") - 1)
+def _sep(head: str = HEADER) -> str:
+    return "|" + "---|" * (head.count("|") - 1)
 
 
 def write_leaderboard(results_dir: Path, out_path: Path, *, command: str, suite: str | None = None,

@@ -130,7 +130,7 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
                  seeds: list[int] | None = None, budget: int | None = None, device: str | None = None,
                  extra_agents: list[str] | None = None) -> list[Cell]:
     """The grid of cells of ``suite`` after command-line filters and overrides."""
-    from benchmarks.agents import resolve_agent
+    from benchmarks.agents import REFERENCE_AGENTS, resolve_agent
 
     import gymnasium as gym
     import lfd_envs  # noqa: F401
@@ -162,7 +162,7 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
             resolve_agent(name)  # fail early with the list of valid agents
         for agent, kwargs in cell_agents.items():
             kwargs = dict(kwargs)
-            if device and agent not in ("random", "expert", "zero"):
+            if device and agent not in REFERENCE_AGENTS:
                 kwargs["device"] = device
             for seed in seeds if seeds is not None else spec.get("seeds", suite.get("seeds", [0])):
                 cells.append(Cell(
@@ -178,18 +178,32 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
 
 
 # ---------------------------------------------------------------------- running
-def evaluate(agent: Any, env, episodes: int, seed: int) -> list[float]:
-    """Final normalised performance p̂(H) of ``agent`` on eval variants ``0..episodes-1``."""
+#: final ``info`` numbers recorded per evaluation episode besides p̂ where an env reports them
+#: (a quality measure the published metric does not capture), with their table headings
+REPORTED_METRICS: dict[str, str] = {"fold_quality": "fold quality"}
+
+
+def evaluate_episodes(agent: Any, env, episodes: int, seed: int) -> dict[str, list[float]]:
+    """Final ``normalized_performance`` p̂(H) of ``agent`` on eval variants ``0..episodes-1``,
+    plus every :data:`REPORTED_METRICS` key that the final info of every episode has
+    (``{key: [one value per episode]}``)."""
     from lfd_envs.core.rollout import play_episode
 
     if hasattr(agent, "bind"):
         agent.bind(env)
     n_eval = env.unwrapped.variants.size("eval") if hasattr(env.unwrapped, "variants") else episodes
-    finals = []
+    out: dict[str, list[float]] = {"normalized_performance": [], **{k: [] for k in REPORTED_METRICS}}
     for k in range(episodes):
         info = play_episode(env, agent, seed=seed * 100_003 + k, options={"split": "eval", "variant": k % n_eval})
-        finals.append(float(info["normalized_performance"]))
-    return finals
+        for key, values in out.items():
+            if key in info:
+                values.append(float(info[key]))
+    return {k: v for k, v in out.items() if k == "normalized_performance" or len(v) == episodes}
+
+
+def evaluate(agent: Any, env, episodes: int, seed: int) -> list[float]:
+    """Final normalised performance p̂(H) of ``agent`` on eval variants ``0..episodes-1``."""
+    return evaluate_episodes(agent, env, episodes, seed)["normalized_performance"]
 
 
 def environment_info() -> dict[str, Any]:
@@ -227,7 +241,8 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
 
     ``demo_cache`` is the demonstration cache folder handed to the built-in demonstration
     agents (default ``benchmarks/results/_demos``). The result records what training spent:
-    ``env_steps`` (steps in the training env), ``gradient_updates`` and ``demo_transitions``.
+    ``env_steps`` (steps in the training env), ``gradient_updates`` and ``demo_transitions``;
+    ``final_metrics`` holds the per-episode :data:`REPORTED_METRICS` the env reports.
     """
     import gymnasium as gym
     from tqdm import tqdm
@@ -262,13 +277,15 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
         curve.append({"steps": done_steps, "mean_normalized_performance": float(np.mean(scores))})
     train_time = time.perf_counter() - t0
     t1 = time.perf_counter()
-    finals = evaluate(agent, eval_env, cell.eval_episodes, seed=cell.seed)
+    final = evaluate_episodes(agent, eval_env, cell.eval_episodes, seed=cell.seed)
+    finals = final.pop("normalized_performance")
     eval_time = time.perf_counter() - t1
     env.close()
     eval_env.close()
     return {
         "cell": {k: v for k, v in cell.__dict__.items()},
         "final_normalized_performance": finals,
+        "final_metrics": final,  # REPORTED_METRICS the env has, one value per episode
         "learning_curve": curve,
         "train_wall_time_s": train_time,
         "eval_wall_time_s": eval_time,

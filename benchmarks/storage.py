@@ -77,6 +77,11 @@ def read_result(path: str | os.PathLike) -> dict[str, Any]:
     cell = result["cell"]
     if not isinstance(cell, dict) or not {"env_id", "agent", "seed"} <= set(cell):
         raise CorruptResult(path, "cell must name env_id, agent and seed")
+    extra = result.get("final_metrics", {})  # absent in results written before it was recorded
+    if not isinstance(extra, dict) or not all(
+            isinstance(v, list) and len(v) == len(finals) and all(isinstance(x, (int, float)) for x in v)
+            for v in extra.values()):
+        raise CorruptResult(path, "final_metrics must map names to one number per evaluation episode")
     return result
 
 

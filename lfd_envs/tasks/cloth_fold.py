@@ -13,6 +13,13 @@ images across the vertical centre line (same row)::
 so the left half must land on the right half while the right half stays where it was.
 ``info`` adds ``group_distance`` and ``fixation_distance`` (the two means). Reward = change of
 ``p`` per step; ``normalized_performance`` = ``(p - p0) / (0 - p0)``.
+
+``metric="mail"`` scores as MAIL's ClothFold, which adds the distances of the left corners to
+their right partners::
+
+    p = -mean_i |A_i - B_i| - 1.2 * mean_i |B_i - B_i(0)| - (|TL - TR| + |BL - BR|)
+
+(``info["corner_term"]`` is the bracket, reported with either metric).
 Horizons: 100 steps (delta), 3 steps (pick_place).
 """
 
@@ -20,15 +27,18 @@ from __future__ import annotations
 
 import numpy as np
 
+from lfd_envs.core.errors import check_choice
 from lfd_envs.tasks.cloth_task import ClothTask
 from lfd_envs.tasks.particle_env import ParticleEnv, ParticleVectorEnv
 from lfd_envs.tasks.particle_task import Context, TaskVariant
 from lfd_envs.tasks.picker_actions import FAST_FREE_MOVES, PickPlaceSchedule, Workspace
 
-__all__ = ["ClothFoldTask", "ClothFoldEnv", "ClothFoldVectorEnv", "fold_distances"]
+__all__ = ["ClothFoldTask", "ClothFoldEnv", "ClothFoldVectorEnv", "fold_distances", "METRICS"]
 
 SIZE_RANGE = (60 * 0.00625, 119 * 0.00625)
 MAX_YAW = np.pi / 4
+#: scores of ClothFold: SoftGym's (default) and MAIL's (with the corner term)
+METRICS = ("default", "mail")
 
 
 def fold_distances(grid: np.ndarray, b_init: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -50,11 +60,20 @@ def group_b(grid: np.ndarray) -> np.ndarray:
 
 
 class ClothFoldTask(ClothTask):
-    """Scene, state and score of ClothFold (see module docstring)."""
+    """Scene, state and score of ClothFold (see module docstring).
+
+    Args:
+        metric: ``"default"`` (SoftGym) or ``"mail"`` (MAIL: plus the corner term).
+    """
 
     name = "ClothFold-v0"
     default_num_pickers = 2
     horizons = {"delta": 100, "pick_place": 3}
+
+    def __init__(self, resolution: int | None = None, num_pickers: int | None = None,
+                 metric: str = "default") -> None:
+        super().__init__(resolution, num_pickers)
+        self.metric = check_choice("metric", metric, METRICS)
 
     def workspace(self) -> Workspace:
         return Workspace((-0.6, -0.6, 0.0), (0.6, 0.6, 0.7), margin=self.picker_radius)
@@ -88,7 +107,10 @@ class ClothFoldTask(ClothTask):
 
     def evaluate(self, positions: np.ndarray, ctx: Context) -> dict[str, np.ndarray]:
         group, fixation = fold_distances(self.grid(positions), ctx["b_init"])
-        return {"performance": -group - 1.2 * fixation, "group_distance": group, "fixation_distance": fixation}
+        bl, br, tr, tl = (positions[:, i] for i in self.corner_indices)
+        corner = np.linalg.norm(tl - tr, axis=-1) + np.linalg.norm(bl - br, axis=-1)
+        p = -group - 1.2 * fixation - (corner if self.metric == "mail" else 0.0)
+        return {"performance": p, "group_distance": group, "fixation_distance": fixation, "corner_term": corner}
 
     # ------------------------------------------------------------------ for experts
     def fold_pairs(self, num: int) -> tuple[np.ndarray, np.ndarray]:
@@ -101,12 +123,30 @@ class ClothFoldTask(ClothTask):
 
 
 class ClothFoldEnv(ParticleEnv):
-    """ClothFold-v0 (see :mod:`lfd_envs.tasks.cloth_fold`)."""
+    """ClothFold-v0 (see :mod:`lfd_envs.tasks.cloth_fold`).
+
+    Same arguments as every particle env plus ``metric`` (``"default"`` or ``"mail"``).
+    """
 
     task_class = ClothFoldTask
+
+    def __init__(self, num_pickers: int | None = None, action_mode: str = "delta", obs_mode: str | None = None,
+                 image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
+                 render_mode: str | None = None, horizon: int | None = None,
+                 render_size: int | tuple[int, int] | None = None, metric: str = "default") -> None:
+        self._setup(dict(num_pickers=num_pickers, resolution=resolution, metric=metric), action_mode, obs_mode,
+                    image_size, device, render_mode, horizon, render_size)
 
 
 class ClothFoldVectorEnv(ParticleVectorEnv):
-    """Batched ClothFold-v0 (one engine call per frame for all worlds)."""
+    """Batched ClothFold-v0 (one engine call per frame for all worlds); ``metric`` as above."""
 
     task_class = ClothFoldTask
+
+    def __init__(self, num_envs: int = 1, num_pickers: int | None = None, action_mode: str = "delta",
+                 obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
+                 resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
+                 horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
+                 max_episode_steps: int | None = None, metric: str = "default") -> None:
+        self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution, metric=metric), action_mode,
+                    obs_mode, image_size, device, render_mode, horizon, render_size, max_episode_steps)

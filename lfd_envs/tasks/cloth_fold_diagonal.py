@@ -18,6 +18,19 @@ paired with the top edge and the right edge with the bottom edge::
 
 (Frobenius norms over the particle rows). ``info["corner_distance"]`` is the distance between
 the bottom-left and the top-right corners. Reward = change of ``p`` per step.
+
+The edge metric only looks at the border, so crumpling fools it: shrinking the cloth to a
+fraction ``f`` of its size scores p-hat = 1 - f, and dropping it from a height scores well above
+0. ``info["fold_quality"]`` is a measure crumpling cannot fool (ClothFold's, across the
+diagonal): group A = the bottom-left triangle, B = each A particle's mirror partner across the
+diagonal, and::
+
+    q = 1 - (mean |A - B| + 1.2 mean |B - B_flat|) / mean |A_flat - B_flat|
+
+where ``B_flat`` is B laid out flat as at the start of the episode (the variant's offset and
+turn). ``q = 0`` for the flat cloth, 1 for a perfect fold that leaves B where it was; a cloth
+shrunk, crumpled or dropped moves B and scores about 0 or below. ``info`` also has the two means
+(``fold_group_distance``, ``fold_fixation_distance``, m).
 Default observation: a 32x32 RGB image (DMfD). Horizons: 100 (delta), 3 (pick_place).
 """
 
@@ -30,7 +43,8 @@ from lfd_envs.tasks.particle_env import ParticleEnv, ParticleVectorEnv
 from lfd_envs.tasks.particle_task import Context, TaskVariant
 from lfd_envs.tasks.picker_actions import FAST_FREE_MOVES, PickPlaceSchedule, Workspace
 
-__all__ = ["ClothFoldDiagonalTask", "ClothFoldDiagonalEnv", "ClothFoldDiagonalVectorEnv", "diagonal_edge_distance"]
+__all__ = ["ClothFoldDiagonalTask", "ClothFoldDiagonalEnv", "ClothFoldDiagonalVectorEnv", "diagonal_edge_distance",
+           "diagonal_fold_distances", "FIXATION_WEIGHT"]
 
 CLOTH_SIZE = 0.75
 MAX_OFFSET = 0.02
@@ -46,6 +60,28 @@ def diagonal_edge_distance(grid: np.ndarray) -> np.ndarray:
     top, bottom = grid[:, -1, ::-1], grid[:, 0, ::-1]
     return (np.linalg.norm((left - top).reshape(len(grid), -1), axis=1)
             + np.linalg.norm((right - bottom).reshape(len(grid), -1), axis=1))
+
+
+#: weight of the fixation term of the fold quality (SoftGym ClothFold's 1.2)
+FIXATION_WEIGHT = 1.2
+
+
+def diagonal_fold_distances(grid: np.ndarray, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(mean |A - B|, mean |B - B_flat|)`` per world for the diagonal fold.
+
+    Group A = the bottom-left triangle (grid cells with ``row + col < n - 1``), B = their fold
+    partners across the top-left/bottom-right diagonal (``(row, col) -> (n-1-col, n-1-row)``).
+
+    Args:
+        grid: Cloth grids ``(W, n, n, 3)``.
+        flat: The same grids laid out flat at the start of the episode ``(W, n, n, 3)``.
+    """
+    n = grid.shape[1]
+    r, c = np.nonzero(np.add.outer(np.arange(n), np.arange(n)) < n - 1)
+    a, b = grid[:, r, c], grid[:, n - 1 - c, n - 1 - r]
+    group = np.linalg.norm(a - b, axis=-1).mean(axis=1)
+    fixation = np.linalg.norm(b - flat[:, n - 1 - c, n - 1 - r], axis=-1).mean(axis=1)
+    return group, fixation
 
 
 class ClothFoldDiagonalTask(ClothTask):
@@ -102,22 +138,44 @@ class ClothFoldDiagonalTask(ClothTask):
             builder.pin(handle.start + np.flatnonzero(self._under_block(offset, yaw)))
         return TaskVariant(builder, {"offset": offset, "yaw": np.float64(yaw)})
 
-    def _under_block(self, offset: np.ndarray, yaw: float) -> np.ndarray:
-        """Mask ``(n*n,)`` of grid particles under the pin block's footprint."""
+    def flat_grid(self, offset: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+        """The cloth as laid out flat on the table, ``(W, n, n, 3)``, for offsets ``(W, 2)`` and
+        yaws ``(W,)`` (the variant data; the same layout the scene builder uses)."""
         n = self.resolution
+        offset, yaw = np.atleast_2d(np.asarray(offset, np.float64)), np.atleast_1d(np.asarray(yaw, np.float64))
         s = np.linspace(-0.5 * CLOTH_SIZE, 0.5 * CLOTH_SIZE, n)
         y, x = np.meshgrid(s, s, indexing="ij")
-        c, si = np.cos(yaw), np.sin(yaw)
-        wx, wy = c * x - si * y + offset[0], si * x + c * y + offset[1]
-        return ((np.abs(wx - BLOCK_CENTER_XY[0]) <= BLOCK_HALF_EXTENTS[0])
-                & (np.abs(wy - BLOCK_CENTER_XY[1]) <= BLOCK_HALF_EXTENTS[1])).ravel()
+        c, si = np.cos(yaw)[:, None, None], np.sin(yaw)[:, None, None]
+        out = np.empty((len(yaw), n, n, 3))
+        out[..., 0] = c * x - si * y + offset[:, 0, None, None]
+        out[..., 1] = si * x + c * y + offset[:, 1, None, None]
+        out[..., 2] = self.particle_radius
+        return out
+
+    def _under_block(self, offset: np.ndarray, yaw: float) -> np.ndarray:
+        """Mask ``(n*n,)`` of grid particles under the pin block's footprint."""
+        flat = self.flat_grid(offset, yaw)[0]
+        return ((np.abs(flat[..., 0] - BLOCK_CENTER_XY[0]) <= BLOCK_HALF_EXTENTS[0])
+                & (np.abs(flat[..., 1] - BLOCK_CENTER_XY[1]) <= BLOCK_HALF_EXTENTS[1])).ravel()
 
     def performance(self, positions: np.ndarray, ctx: Context) -> np.ndarray:
         return -diagonal_edge_distance(self.grid(positions))
 
     def metrics(self, positions: np.ndarray, ctx: Context) -> dict[str, np.ndarray]:
         bl, tr = self.grid_index(0, 0), self.grid_index(-1, -1)
-        return {"corner_distance": np.linalg.norm(positions[:, bl] - positions[:, tr], axis=-1)}
+        group, fixation = diagonal_fold_distances(self.grid(positions).astype(np.float64),
+                                                  self.flat_grid(ctx["offset"], ctx["yaw"]))
+        return {"corner_distance": np.linalg.norm(positions[:, bl] - positions[:, tr], axis=-1),
+                "fold_group_distance": group, "fold_fixation_distance": fixation,
+                "fold_quality": 1.0 - (group + FIXATION_WEIGHT * fixation) / self.flat_group_distance}
+
+    @property
+    def flat_group_distance(self) -> float:
+        """``mean |A - B|`` of the flat cloth (the fold quality's 0; the same for every variant)."""
+        if not hasattr(self, "_flat_group"):
+            flat = self.flat_grid(np.zeros(2), 0.0)
+            self._flat_group = float(diagonal_fold_distances(flat, flat)[0][0])
+        return self._flat_group
 
     # ------------------------------------------------------------------ for experts
     def fold_pairs(self, num: int) -> tuple[np.ndarray, np.ndarray]:

@@ -21,28 +21,36 @@ centre line, ``L`` = cloth side)::
     p = (frac_A + frac_B) / 2 + (spread_A + spread_B) / 2         (spread in metres)
 
 ``p_opt = 1`` (every particle of both groups above the ground on its side and the cloth spread
-along the plank); ``normalized_performance = (p - p0) / (1 - p0)``. MAIL used the start
-extent of the particle-0-to-last diagonal along the plank as ``L`` (it depends on the
-rotation); we use the cloth side. ``info`` adds ``hanging_fraction`` ((frac_A + frac_B)/2)
-and ``spread_error`` (-(spread_A + spread_B)/2, metres). Reward = change of ``p`` per step.
+along the plank); ``normalized_performance = (p - p0) / (1 - p0)``. By default ``L`` is the
+cloth side; ``metric="mail"`` uses MAIL's reference instead, the extent along the plank of the
+particle-0-to-last diagonal of the cloth as laid out at the start (``L |cos t + sin t|`` for a
+cloth turned by ``t``: it depends on the variant's rotation, from 0 to ``sqrt(2) L``).
+``info`` adds ``hanging_fraction`` ((frac_A + frac_B)/2), ``spread_error``
+(-(spread_A + spread_B)/2, metres) and ``spread_reference`` (``L``, metres).
+Reward = change of ``p`` per step.
+
+``reach`` (m, default 0.35) is how far past the plank's centre line the picker centres may go;
+MAIL's normalised action box ends 0.1 m past its plank (``reach=0.1``). The workspace (and so
+the pick-and-place action normalisation) starts there.
 
 Reduced state: the 4 cloth corners, the plank (centre xyz and yaw) and the pickers
 (``16 + 3P`` numbers). Horizons: 75 (delta), 3 (pick_place; MAIL's student; its teacher
-used 1). Default action mode: ``pick_place``. Workspace: x in [-0.65, 0.7], y in [-0.6, 0.6],
-z in [0, 0.7] (picker radius 0.05 kept inside).
+used 1). Default action mode: ``pick_place``. Workspace: x in [PLANK_X - reach - 0.05, 0.7]
+(default [-0.65, 0.7]), y in [-0.6, 0.6], z in [0, 0.7] (picker radius 0.05 kept inside).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from lfd_envs.core.errors import check_choice, check_float
 from lfd_envs.tasks.cloth_task import ClothTask
 from lfd_envs.tasks.particle_env import PickPlaceParticleEnv, PickPlaceParticleVectorEnv
 from lfd_envs.tasks.particle_task import Context, TaskVariant
 from lfd_envs.tasks.picker_actions import PickPlaceSchedule, Workspace
 
-__all__ = ["DryClothTask", "DryClothEnv", "DryClothVectorEnv", "dry_cloth_scores",
-           "PLANK_X", "PLANK_HALF_EXTENTS", "CLOTH_SIZE"]
+__all__ = ["DryClothTask", "DryClothEnv", "DryClothVectorEnv", "dry_cloth_scores", "mail_spread_reference",
+           "PLANK_X", "PLANK_HALF_EXTENTS", "CLOTH_SIZE", "METRICS", "DEFAULT_REACH"]
 
 CLOTH_SIZE = 0.5
 PLANK_X = -0.25
@@ -51,16 +59,30 @@ HANG_HEIGHT = 0.05
 MAX_YAW = np.pi / 4
 OFFSET_X = (0.40, 0.50)
 OFFSET_Y = (-0.1, 0.1)
+#: scores: ours (spread reference = the cloth side) and MAIL's (spread reference from the start)
+METRICS = ("default", "mail")
+#: default reach (m) of the picker centres past the plank's centre line
+DEFAULT_REACH = 0.35
 
 
-def dry_cloth_scores(grid: np.ndarray, x0: np.ndarray, u: np.ndarray, side: float) -> dict[str, np.ndarray]:
+def mail_spread_reference(yaw: np.ndarray, u: np.ndarray, side: float) -> np.ndarray:
+    """MAIL's spread reference per world: the extent along the plank (unit vectors ``u``
+    ``(W, 3)``) of the particle-0-to-last diagonal of a flat cloth of side ``side`` turned by
+    ``yaw`` ``(W,)``."""
+    yaw = np.asarray(yaw, np.float64)
+    diagonal = side * np.stack([np.cos(yaw) - np.sin(yaw), np.sin(yaw) + np.cos(yaw), np.zeros_like(yaw)], axis=1)
+    return np.abs(np.einsum("wd,wd->w", diagonal, u))
+
+
+def dry_cloth_scores(grid: np.ndarray, x0: np.ndarray, u: np.ndarray,
+                     side: float | np.ndarray) -> dict[str, np.ndarray]:
     """MAIL DryCloth scores per world (see module docstring).
 
     Args:
         grid: Cloth grids ``(W, n, n, 3)``.
         x0: Plank centre ``(W, 3)``; only the horizontal offset across the plank matters.
         u: Unit vectors along the plank ``(W, 3)`` (horizontal).
-        side: Cloth side length ``L`` (m).
+        side: Spread reference ``L`` (m), one number or one per world ``(W,)``.
     """
     n = grid.shape[1]
     xl, xr = int(0.4 * n), int(0.6 * n)
@@ -77,11 +99,17 @@ def dry_cloth_scores(grid: np.ndarray, x0: np.ndarray, u: np.ndarray, side: floa
     spread_b = -np.abs(0.5 * (ext(xr) + ext(n - 1)) - side)
     hanging = 0.5 * (frac_a + frac_b)
     spread = 0.5 * (spread_a + spread_b)
-    return {"performance": hanging + spread, "hanging_fraction": hanging, "spread_error": -spread}
+    return {"performance": hanging + spread, "hanging_fraction": hanging, "spread_error": -spread,
+            "spread_reference": np.broadcast_to(np.asarray(side, np.float64), hanging.shape).copy()}
 
 
 class DryClothTask(ClothTask):
-    """Scene, state and score of DryCloth (see module docstring)."""
+    """Scene, state and score of DryCloth (see module docstring).
+
+    Args:
+        metric: ``"default"`` (spread reference = cloth side) or ``"mail"`` (MAIL's reference).
+        reach: How far (m) past the plank's centre line the picker centres may go (> 0.05).
+    """
 
     name = "DryCloth-v0"
     default_num_pickers = 1
@@ -94,9 +122,16 @@ class DryClothTask(ClothTask):
     default_resolution = 36
     static_box_color = (0.7, 0.5, 0.2)  # MAIL's plank colour
 
+    def __init__(self, resolution: int | None = None, num_pickers: int | None = None, metric: str = "default",
+                 reach: float = DEFAULT_REACH) -> None:
+        super().__init__(resolution, num_pickers)
+        self.metric = check_choice("metric", metric, METRICS)
+        self.reach = check_float("reach", reach, 0.05, 0.6)
+
     # ------------------------------------------------------------------ engine
     def workspace(self) -> Workspace:
-        return Workspace((-0.65, -0.6, 0.0), (0.7, 0.6, 0.7), margin=self.picker_radius)
+        return Workspace((PLANK_X - self.reach - self.picker_radius, -0.6, 0.0), (0.7, 0.6, 0.7),
+                         margin=self.picker_radius)
 
     def pick_place_schedule(self) -> PickPlaceSchedule:
         # a carry from the ground to above the far side of the plank, then time for the cloth
@@ -146,8 +181,9 @@ class DryClothTask(ClothTask):
 
     def evaluate(self, positions: np.ndarray, ctx: Context) -> dict[str, np.ndarray]:
         plank = np.asarray(ctx["plank"], np.float64)
-        return dry_cloth_scores(self.grid(positions).astype(np.float64), plank[:, :3], self.plank_axis(ctx),
-                                CLOTH_SIZE)
+        u = self.plank_axis(ctx)
+        side = mail_spread_reference(ctx["yaw"], u, CLOTH_SIZE) if self.metric == "mail" else CLOTH_SIZE
+        return dry_cloth_scores(self.grid(positions).astype(np.float64), plank[:, :3], u, side)
 
     def performance(self, positions: np.ndarray, ctx: Context) -> np.ndarray:
         return self.evaluate(positions, ctx)["performance"]
@@ -185,12 +221,32 @@ class DryClothTask(ClothTask):
 
 
 class DryClothEnv(PickPlaceParticleEnv):
-    """DryCloth-v0 (see :mod:`lfd_envs.tasks.dry_cloth`); default action mode ``pick_place``."""
+    """DryCloth-v0 (see :mod:`lfd_envs.tasks.dry_cloth`); default action mode ``pick_place``.
+
+    Same arguments as every particle env plus ``metric`` (``"default"`` or ``"mail"``) and
+    ``reach`` (m past the plank, default 0.35; MAIL 0.1).
+    """
 
     task_class = DryClothTask
+
+    def __init__(self, num_pickers: int | None = None, action_mode: str = "pick_place", obs_mode: str | None = None,
+                 image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
+                 render_mode: str | None = None, horizon: int | None = None,
+                 render_size: int | tuple[int, int] | None = None, metric: str = "default",
+                 reach: float = DEFAULT_REACH) -> None:
+        self._setup(dict(num_pickers=num_pickers, resolution=resolution, metric=metric, reach=reach), action_mode,
+                    obs_mode, image_size, device, render_mode, horizon, render_size)
 
 
 class DryClothVectorEnv(PickPlaceParticleVectorEnv):
-    """Batched DryCloth-v0 (one engine call per frame for all worlds)."""
+    """Batched DryCloth-v0 (one engine call per frame for all worlds); ``metric``, ``reach`` as above."""
 
     task_class = DryClothTask
+
+    def __init__(self, num_envs: int = 1, num_pickers: int | None = None, action_mode: str = "pick_place",
+                 obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
+                 resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
+                 horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
+                 max_episode_steps: int | None = None, metric: str = "default", reach: float = DEFAULT_REACH) -> None:
+        self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution, metric=metric, reach=reach),
+                    action_mode, obs_mode, image_size, device, render_mode, horizon, render_size, max_episode_steps)
