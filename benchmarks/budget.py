@@ -79,7 +79,12 @@ def env_steps(agent: Any, train_env: StepCounter) -> int:
     return n
 
 
-def spent(agent: Any, train_env: StepCounter) -> dict[str, int]:
-    """The three budget numbers recorded in every cell's JSON."""
-    return {"env_steps": env_steps(agent, train_env), "gradient_updates": gradient_updates(agent),
-            "demo_transitions": demo_transitions(agent)}
+def spent(agent: Any, train_env: StepCounter) -> dict[str, Any]:
+    """The three budget numbers recorded in every cell's JSON, plus the demonstrations' mean final
+    p̂ (``demo_performance``) for agents that learnt from harness-collected demonstrations."""
+    out: dict[str, Any] = {"env_steps": env_steps(agent, train_env), "gradient_updates": gradient_updates(agent),
+                           "demo_transitions": demo_transitions(agent)}
+    quality = getattr(agent, "demo_performance", None)
+    if isinstance(quality, float):
+        out["demo_performance"] = quality
+    return out

@@ -32,11 +32,17 @@ class Demonstrations:
     path: Path  #: the Minari dataset folder (pass ``str(path)`` to the agents)
     episodes: int  #: episodes in the dataset
     transitions: int  #: environment transitions in the dataset
+    mean_final_performance: float  #: mean final p̂ of the demonstration episodes
 
 
-def cache_key(env_id: str, env_kwargs: dict[str, Any], episodes: int, seed: int) -> str:
-    """Folder name of the cache entry of these collection settings."""
-    blob = json.dumps([env_id, env_kwargs, int(episodes), int(seed)], sort_keys=True, default=str)
+def cache_key(env_id: str, env_kwargs: dict[str, Any], episodes: int, seed: int, policy: str = "expert",
+              policy_kwargs: dict[str, Any] | None = None) -> str:
+    """Folder name of the cache entry of these collection settings (the expert's keys predate the
+    ``policy`` arguments and stay as they were)."""
+    parts: list[Any] = [env_id, env_kwargs, int(episodes), int(seed)]
+    if policy != "expert" or policy_kwargs:
+        parts += [policy, dict(policy_kwargs or {})]
+    blob = json.dumps(parts, sort_keys=True, default=str)
     return hashlib.sha256(blob.encode()).hexdigest()[:16]
 
 
@@ -55,7 +61,21 @@ def validate(path: Path, episodes: int) -> Demonstrations:
         raise ValueError(f"cannot read demonstrations at {path}: {type(exc).__name__}: {exc}") from exc
     if len(eps) != int(episodes):
         raise ValueError(f"demonstrations at {path} hold {len(eps)} episodes, expected {episodes}")
-    return Demonstrations(path=Path(path), episodes=len(eps), transitions=int(sum(len(ep) for ep in eps)))
+    return Demonstrations(path=Path(path), episodes=len(eps), transitions=int(sum(len(ep) for ep in eps)),
+                          mean_final_performance=_mean_final_performance(path))
+
+
+def _mean_final_performance(path: Path) -> float:
+    """Mean final p̂ recorded in the dataset's infos (NaN when the dataset has none)."""
+    from lfd_envs import datasets
+
+    finals = []
+    for ep in datasets.load(path).iterate_episodes():
+        perf = (ep.infos or {}).get("normalized_performance")
+        if perf is None or len(perf) == 0:
+            return float("nan")
+        finals.append(float(perf[-1]))
+    return float(sum(finals) / len(finals)) if finals else float("nan")
 
 
 def _remove_abandoned(cache_dir: Path, key: str) -> None:
@@ -70,14 +90,18 @@ def _remove_abandoned(cache_dir: Path, key: str) -> None:
             pass  # not ours to judge
 
 
-def demonstrations_for(env: gym.Env, episodes: int, cache_dir: str | os.PathLike, seed: int = 0) -> Demonstrations:
-    """Expert demonstrations for ``env``'s id and kwargs from ``cache_dir`` (collected on a miss).
+def demonstrations_for(env: gym.Env, episodes: int, cache_dir: str | os.PathLike, seed: int = 0,
+                       policy: str = "expert", policy_kwargs: dict[str, Any] | None = None) -> Demonstrations:
+    """Demonstrations for ``env``'s id and kwargs from ``cache_dir`` (collected on a miss).
 
     Args:
         env: an env made with ``gymnasium.make`` (its spec defines what is collected).
-        episodes: number of expert episodes.
+        episodes: number of demonstration episodes.
         cache_dir: cache root, normally ``<results folder>/_demos``.
         seed: collection seed (episode ``i`` resets with ``seed + 500_000 + i``).
+        policy: the demonstrator, a name of :data:`lfd_envs.datasets.POLICIES` (default: the
+            scripted expert; ``"noisy_expert"`` gives demonstrations of lower quality).
+        policy_kwargs: arguments of the demonstrator, e.g. ``{"epsilon": 0.2}``.
     """
     from lfd_envs import datasets
 
@@ -86,9 +110,11 @@ def demonstrations_for(env: gym.Env, episodes: int, cache_dir: str | os.PathLike
         raise ValueError("demonstration agents need an env made with gymnasium.make (env.spec is None)")
     if int(episodes) < 1:
         raise ValueError(f"demo_episodes must be >= 1, got {episodes}")
+    if policy not in datasets.POLICIES:
+        raise ValueError(f"unknown demonstration policy {policy!r}; valid: {sorted(datasets.POLICIES)}")
     kwargs = {k: v for k, v in (spec.kwargs or {}).items() if k != "render_mode"}
     cache_dir = Path(cache_dir)
-    root = cache_dir / cache_key(spec.id, kwargs, episodes, seed)
+    root = cache_dir / cache_key(spec.id, kwargs, episodes, seed, policy, policy_kwargs)
     if root.exists():
         found = _dataset_dir(root)
         try:
@@ -103,7 +129,7 @@ def demonstrations_for(env: gym.Env, episodes: int, cache_dir: str | os.PathLike
     tmp = cache_dir / f".{root.name}.tmp-{os.getpid()}-{uuid.uuid4().hex[:8]}"
     try:
         written = datasets.collect(spec.id, int(episodes), tmp, env_kwargs=kwargs, seed=seed + 500_000,
-                                   progress=False)
+                                   policy=policy, policy_kwargs=policy_kwargs, progress=False)
         rel = Path(written).resolve().relative_to(tmp.resolve())
         validate(tmp / rel, episodes)
         try:

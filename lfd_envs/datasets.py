@@ -103,7 +103,18 @@ def random_pick_place_policy(env: gym.Env) -> Any:
     return factory(env)
 
 
-POLICIES = {"expert": expert_policy, "random": RandomPolicy, "random_pick_place": random_pick_place_policy}
+def noisy_expert_policy(env: gym.Env, seed: int = 0, epsilon: float = 0.2) -> Any:
+    """The scripted expert with random slips of probability ``epsilon`` per step
+    (:mod:`lfd_envs.experts.noisy`): demonstrations of controlled, lower quality."""
+    from lfd_envs.experts.noisy import noisy_expert_policy as factory
+
+    return factory(env, epsilon=epsilon, seed=seed)
+
+
+POLICIES = {"expert": expert_policy, "random": RandomPolicy, "random_pick_place": random_pick_place_policy,
+            "noisy_expert": noisy_expert_policy}
+#: policies whose factory takes the collection seed (``factory(env, seed, **policy_kwargs)``)
+_SEEDED_POLICIES = (RandomPolicy, noisy_expert_policy)
 
 
 # ---------------------------------------------------------------------- collection
@@ -205,6 +216,7 @@ def collect(
     name: str | None = None,
     min_normalized_performance: float | None = None,
     progress: bool = True,
+    policy_kwargs: dict[str, Any] | None = None,
 ) -> Path:
     """Roll out a policy (the scripted expert by default) and save a Minari dataset.
 
@@ -214,13 +226,15 @@ def collect(
         out_dir: root folder of the dataset (Minari's datasets path for this dataset); None:
             Minari's default datasets folder (:func:`minari_root`).
         env_kwargs: constructor arguments of the env.
-        policy: ``"expert"`` (default), ``"random"`` or a factory ``env -> policy`` whose
+        policy: ``"expert"`` (default), ``"noisy_expert"``, ``"random"``, ``"random_pick_place"`` or a factory ``env -> policy`` whose
             policy has ``predict(obs, deterministic=True) -> (action, _)`` and optionally ``reset()``.
         seed: episode ``i`` is reset with ``seed + i`` (variants drawn from ``split``).
         name: dataset name (default: the policy name or ``"custom"``).
         min_normalized_performance: keep only episodes whose final p̂ reaches this value
             (collection continues until ``episodes`` are kept, at most 10× attempts).
         progress: show a progress bar.
+        policy_kwargs: extra arguments of a named policy's factory, e.g. ``{"epsilon": 0.2}`` for
+            ``"noisy_expert"`` (recorded in the dataset's description).
 
     Returns:
         The dataset's folder (pass it to :func:`load`).
@@ -240,8 +254,19 @@ def collect(
     else:
         name = name or "custom"
         factory = policy
+    policy_kwargs = dict(policy_kwargs or {})
+    if policy_kwargs and factory not in POLICIES.values():
+        raise ValueError("policy_kwargs apply to named policies only; bind them into your factory instead")
     env = gym.make(env_id, **env_kwargs)
-    agent = factory(env) if factory is not RandomPolicy else RandomPolicy(env, seed)
+    try:
+        agent = (factory(env, seed, **policy_kwargs) if factory in _SEEDED_POLICIES
+                 else factory(env, **policy_kwargs))
+    except TypeError as exc:
+        env.close()
+        raise ValueError(f"policy {name!r} does not take {sorted(policy_kwargs)}: {exc}") from exc
+    except ValueError:
+        env.close()
+        raise
     kept: list[Any] = []
     attempts = 0
     bar = tqdm(total=int(episodes), desc=f"collect {env_id}", disable=not progress, file=sys.stderr)
@@ -257,7 +282,8 @@ def collect(
     if not kept:
         raise RuntimeError(f"no episode reached normalized performance {min_normalized_performance}")
     env.close()
-    return write_dataset(kept, env, env_id, out_dir, name=name, env_kwargs=env_kwargs, seed=seed, split=split)
+    return write_dataset(kept, env, env_id, out_dir, name=name, env_kwargs=env_kwargs, seed=seed, split=split,
+                         extra={"policy_kwargs": policy_kwargs} if policy_kwargs else None)
 
 
 def minari_root() -> Path:
@@ -367,6 +393,8 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
     c.add_argument("--obs-mode")
     c.add_argument("--resolution", type=int)
     c.add_argument("--policy", default="expert", choices=sorted(POLICIES))
+    c.add_argument("--policy-kwargs", type=json.loads, default=None, metavar="JSON",
+                   help='arguments of the policy, e.g. \'{"epsilon": 0.2}\' for noisy_expert')
     c.add_argument("--seed", type=int, default=0)
     c.add_argument("--split", default="train", choices=["train", "eval"])
     c.add_argument("--name")
@@ -394,7 +422,7 @@ def main(argv: list[str] | None = None) -> int:
         kwargs = {k: v for k, v in {"num_pickers": args.num_pickers, "action_mode": args.action_mode,
                                     "obs_mode": args.obs_mode, "resolution": args.resolution}.items() if v is not None}
         path = collect(args.env, args.episodes, args.out, env_kwargs=kwargs, policy=args.policy,
-                       seed=args.seed, split=args.split, name=args.name)
+                       seed=args.seed, split=args.split, name=args.name, policy_kwargs=args.policy_kwargs)
         ds = load(path)
         finals = [float(ep.infos["normalized_performance"][-1]) for ep in ds.iterate_episodes()]
         print(f"wrote {path}: {ds.total_episodes} episodes, {ds.total_steps} steps, "
