@@ -274,12 +274,15 @@ class MAIL:
         model.save(self.policy_path)
         return model
 
-    def run(self, total_timesteps: int = 10_000) -> dict[str, Any]:
-        """All stages (resuming from saved outputs)."""
+    def run(self, total_timesteps: int = 10_000, max_demos: int | None = None, **dmfd_kwargs: Any) -> dict[str, Any]:
+        """All stages (resuming from saved outputs); returns the statistics of :meth:`convert`.
+
+        ``max_demos`` goes to :meth:`convert`, ``dmfd_kwargs`` to :meth:`student` (DMfD).
+        """
         if self.config.backend == "learned":
             self.dynamics()
-        stats = self.convert()
-        self.student(total_timesteps)
+        stats = self.convert(max_demos)
+        self.student(total_timesteps, **dmfd_kwargs)
         return stats
 
 
