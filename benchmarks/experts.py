@@ -3,7 +3,7 @@
 For every (task, picker count, action mode) row, the expert runs one episode on each of the
 first ``N`` eval variants (``reset(seed=0, options={"variant": k, "split": "eval"})``) and the
 table reports the mean, standard deviation and minimum of the final normalised performance
-p̂(H), next to the target of SPEC §4.4 where there is one. Output is a markdown table, so the
+p̂(H), next to the project's target where there is one. Output is a markdown table, so the
 numbers in the docs can be reproduced with the same command.
 
 Examples::
@@ -17,16 +17,16 @@ from __future__ import annotations
 import argparse
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 
-__all__ = ["Row", "ROWS", "evaluate_expert", "main"]
+__all__ = ["Row", "ROWS", "evaluate_expert", "expert_results", "select_rows", "table_row", "main"]
 
 
 @dataclass(frozen=True)
 class Row:
-    """One benchmark row: env id, picker count, action mode and the SPEC target (if any)."""
+    """One benchmark row: env id, picker count, action mode and the target (if any)."""
 
     env_id: str
     num_pickers: int
@@ -99,6 +99,46 @@ def _chunk(args: tuple) -> tuple[int, int, np.ndarray, float]:
     return index, first, scores, time.perf_counter() - t0
 
 
+TABLE_HEADER = ("| task | pickers | action mode | mean p̂ | std | min | target | met | s/episode |\n"
+                "|---|---|---|---|---|---|---|---|---|")
+
+
+def select_rows(tasks: set[str] | None = None, modes: set[str] | None = None) -> list[Row]:
+    """The rows of :data:`ROWS` of ``tasks`` (env ids) and action ``modes`` (all when None/empty)."""
+    return [r for r in ROWS if (not tasks or r.env_id in tasks) and (not modes or r.action_mode in modes)]
+
+
+def expert_results(rows: list[Row], variants: int, resolution: int | None = None,
+                   jobs: int = 1) -> Iterator[tuple[Row, np.ndarray, float]]:
+    """``(row, final p̂ per variant, seconds per episode)`` for every row, as each row finishes
+    (``jobs`` > 1: variants split into chunks over worker processes)."""
+    chunk = variants if jobs <= 1 else max(1, -(-variants * len(rows) // (2 * jobs)))
+    work = [(i, row, first, min(chunk, variants - first), resolution)
+            for i, row in enumerate(rows) for first in range(0, variants, chunk)]
+    results: dict[int, list[tuple[int, np.ndarray, float]]] = {i: [] for i in range(len(rows))}
+    if jobs <= 1:
+        outputs = map(_chunk, work)
+    else:
+        from concurrent.futures import ProcessPoolExecutor
+
+        pool = ProcessPoolExecutor(jobs)
+        outputs = pool.map(_chunk, work)
+    for index, first, scores, sec in outputs:
+        results[index].append((first, scores, sec))
+        if sum(len(s) for _, s, _ in results[index]) < variants:
+            continue
+        s = np.concatenate([sc for _, sc, _ in sorted(results[index], key=lambda r: r[0])])
+        yield rows[index], s, sum(t for _, _, t in results[index]) / len(s)
+
+
+def table_row(row: Row, scores: np.ndarray, sec: float) -> str:
+    """One markdown line of the expert table."""
+    target = "" if row.target is None else f"{row.target:.3f}"
+    met = "" if row.target is None else ("yes" if scores.mean() >= row.target else "no")
+    return (f"| {row.env_id} | {row.num_pickers} | {row.action_mode} | {scores.mean():.3f} | {scores.std():.3f} | "
+            f"{scores.min():.3f} | {target} | {met} | {sec:.2f} |")
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--variants", type=int, default=100, help="eval variants per row (default 100)")
@@ -110,35 +150,12 @@ def main(argv: list[str] | None = None) -> None:
     import warp as wp
 
     wp.config.quiet = True
-    tasks = set(filter(None, args.tasks.split(",")))
-    modes = set(args.modes.split(","))
-    rows = [r for r in ROWS if (not tasks or r.env_id in tasks) and r.action_mode in modes]
-    chunk = args.variants if args.jobs <= 1 else max(1, -(-args.variants * len(rows) // (2 * args.jobs)))
-    work = [(i, row, first, min(chunk, args.variants - first), args.resolution)
-            for i, row in enumerate(rows) for first in range(0, args.variants, chunk)]
+    rows = select_rows(set(filter(None, args.tasks.split(","))), set(args.modes.split(",")))
     print(f"Scripted experts: mean final p̂ over eval variants 0..{args.variants - 1} "
           f"(resolution {args.resolution or 'default'})\n")
-    print("| task | pickers | action mode | mean p̂ | std | min | target | met | s/episode |")
-    print("|---|---|---|---|---|---|---|---|---|")
-    results: dict[int, list[tuple[int, np.ndarray, float]]] = {i: [] for i in range(len(rows))}
-    if args.jobs <= 1:
-        outputs = map(_chunk, work)
-    else:
-        from concurrent.futures import ProcessPoolExecutor
-
-        pool = ProcessPoolExecutor(args.jobs)
-        outputs = pool.map(_chunk, work)
-    for index, first, scores, sec in outputs:
-        results[index].append((first, scores, sec))
-        if sum(len(s) for _, s, _ in results[index]) < args.variants:
-            continue
-        row = rows[index]
-        s = np.concatenate([sc for _, sc, _ in sorted(results[index], key=lambda r: r[0])])
-        sec = sum(t for _, _, t in results[index]) / len(s)
-        target = "" if row.target is None else f"{row.target:.3f}"
-        met = "" if row.target is None else ("yes" if s.mean() >= row.target else "no")
-        print(f"| {row.env_id} | {row.num_pickers} | {row.action_mode} | {s.mean():.3f} | {s.std():.3f} | "
-              f"{s.min():.3f} | {target} | {met} | {sec:.2f} |", flush=True)
+    print(TABLE_HEADER)
+    for row, scores, sec in expert_results(rows, args.variants, args.resolution, args.jobs):
+        print(table_row(row, scores, sec), flush=True)
 
 
 if __name__ == "__main__":

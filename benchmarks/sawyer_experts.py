@@ -2,7 +2,7 @@
 
 Episode ``k`` resets with ``seed=k`` on eval variant ``k`` (``options={"split": "eval", "variant": k}``)
 and runs the expert until success or the horizon (250). The markdown table reports the success
-rate (target ≥ 0.9, issue 5), mean episode length and return, and wall time per episode.
+rate (target ≥ 0.9), mean episode length and return, and wall time per episode.
 """
 
 from __future__ import annotations
