@@ -136,7 +136,7 @@ class Runs:
         from benchmarks import mail_bench
 
         tiny = ["--train-transitions", "16", "--test-transitions", "8", "--epochs", "1", "--worlds", "4",
-                "--demos", "1", "--population", "4", "--random-episodes", "1", "--cloth-resolution", "8"]
+                "--demos", "1", "--population", "4", "--random-episodes", "1", "--cloth-resolution", "20"]
         args = mail_bench.parse_args(tiny if self.s.quick else [])
         return self.once("MAIL benchmark", lambda: {"args": args, **mail_bench.run_benchmark(args)})
 
