@@ -107,6 +107,9 @@ def check_suite(suite: dict[str, Any], path: Path | str = "suite") -> None:
             raise bad(f"cells[{i}] needs an 'env'")
         if "notes" in spec and not isinstance(spec["notes"], str):
             raise bad(f"cells[{i}].notes must be a string")
+        steps = spec.get("coverage_steps", 1)
+        if not isinstance(steps, int) or isinstance(steps, bool) or steps < 1:
+            raise bad(f"cells[{i}].coverage_steps must be an integer >= 1, got {steps!r}")
         cpus = spec.get("cpus", suite.get("cpus", 1))
         if not isinstance(cpus, int) or isinstance(cpus, bool) or cpus < 1:
             raise bad(f"cells[{i}].cpus must be an integer >= 1, got {cpus!r}")
@@ -171,7 +174,7 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
                     budget=int(budget if budget is not None else spec.get("budget", suite.get("budget", 1000))),
                     eval_episodes=int(spec.get("eval_episodes", suite.get("eval_episodes", 10))),
                     curve_points=int(spec.get("curve_points", suite.get("curve_points", 4))),
-                    tags={k: spec[k] for k in ("label", "notes") if k in spec},
+                    tags={k: spec[k] for k in ("label", "notes", "coverage_steps") if k in spec},
                     cpus=int(spec.get("cpus", suite.get("cpus", 1))),
                 ))
     return cells
@@ -179,8 +182,9 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
 
 # ---------------------------------------------------------------------- running
 #: final ``info`` numbers recorded per evaluation episode besides p̂ where an env reports them
-#: (a quality measure the published metric does not capture), with their table headings
-REPORTED_METRICS: dict[str, str] = {"fold_quality": "fold quality"}
+#: (a quality measure the published metric does not capture; ``is_success``: the success rate),
+#: with their table headings
+REPORTED_METRICS: dict[str, str] = {"fold_quality": "fold quality", "is_success": "success"}
 
 
 def evaluate_episodes(agent: Any, env, episodes: int, seed: int) -> dict[str, list[float]]:
@@ -242,7 +246,9 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
     ``demo_cache`` is the demonstration cache folder handed to the built-in demonstration
     agents (default ``benchmarks/results/_demos``). The result records what training spent:
     ``env_steps`` (steps in the training env), ``gradient_updates`` and ``demo_transitions``;
-    ``final_metrics`` holds the per-episode :data:`REPORTED_METRICS` the env reports.
+    ``final_metrics`` holds the per-episode :data:`REPORTED_METRICS` the env reports. A cell
+    with ``coverage_steps`` N also records where the end-effector went during the first N
+    training steps (``coverage``, :class:`benchmarks.coverage.EndEffectorRecorder`).
     """
     import gymnasium as gym
     from tqdm import tqdm
@@ -256,6 +262,11 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
         importlib.import_module(module)
     factory = resolve_agent(cell.agent)
     env = StepCounter(gym.make(cell.env_id, **cell.env_kwargs))
+    recorder = None
+    if cell.tags.get("coverage_steps"):  # end-effector positions of the first training steps
+        from benchmarks.coverage import EndEffectorRecorder
+
+        recorder = EndEffectorRecorder(env, int(cell.tags["coverage_steps"]))
     eval_env = gym.make(cell.env_id, **cell.env_kwargs)
     kwargs = dict(cell.agent_kwargs)
     if demo_cache is not None and getattr(factory, "uses_demo_cache", False):
@@ -291,6 +302,7 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
         "eval_wall_time_s": eval_time,
         "trained_steps": done_steps if trains else 0,
         **spent(agent, env),
+        **({"coverage": recorder.summary()} if recorder is not None else {}),
         "environment": environment_info(),
         "finished_at": time.strftime("%Y-%m-%d %H:%M:%S"),
     }
