@@ -36,6 +36,8 @@ Default observation: a 32x32 RGB image (DMfD). Horizons: 100 (delta), 3 (pick_pl
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from lfd_envs.tasks.cloth_task import ClothTask
@@ -44,7 +46,7 @@ from lfd_envs.tasks.particle_task import Context, TaskVariant
 from lfd_envs.tasks.picker_actions import FAST_FREE_MOVES, PickPlaceSchedule, Workspace
 
 __all__ = ["ClothFoldDiagonalTask", "ClothFoldDiagonalEnv", "ClothFoldDiagonalVectorEnv", "diagonal_edge_distance",
-           "diagonal_fold_distances", "FIXATION_WEIGHT"]
+           "diagonal_fold_distances", "diagonal_pairs", "FIXATION_WEIGHT"]
 
 CLOTH_SIZE = 0.75
 MAX_OFFSET = 0.02
@@ -66,22 +68,38 @@ def diagonal_edge_distance(grid: np.ndarray) -> np.ndarray:
 FIXATION_WEIGHT = 1.2
 
 
-def diagonal_fold_distances(grid: np.ndarray, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(mean |A - B|, mean |B - B_flat|)`` per world for the diagonal fold.
+@functools.lru_cache(maxsize=8)
+def diagonal_pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Flat grid indices ``(a, b)`` of the fold pairs of an ``n x n`` cloth: ``a`` = the
+    bottom-left triangle (``row + col < n - 1``), ``b`` = their partners across the
+    top-left/bottom-right diagonal (``(row, col) -> (n-1-col, n-1-row)``)."""
+    r, c = np.nonzero(np.add.outer(np.arange(n), np.arange(n)) < n - 1)
+    a, b = r * n + c, (n - 1 - c) * n + (n - 1 - r)
+    a.setflags(write=False)
+    b.setflags(write=False)
+    return a, b
 
-    Group A = the bottom-left triangle (grid cells with ``row + col < n - 1``), B = their fold
-    partners across the top-left/bottom-right diagonal (``(row, col) -> (n-1-col, n-1-row)``).
+
+def _pair_distances(cloth: np.ndarray, flat_b: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
+    a_idx, b_idx = diagonal_pairs(n)
+    b = cloth[:, b_idx]
+    d_ab, d_fix = cloth[:, a_idx] - b, b - flat_b.astype(b.dtype, copy=False)
+    group = np.sqrt(np.einsum("wmk,wmk->wm", d_ab, d_ab)).mean(axis=1, dtype=np.float64)
+    fixation = np.sqrt(np.einsum("wmk,wmk->wm", d_fix, d_fix)).mean(axis=1, dtype=np.float64)
+    return group, fixation
+
+
+def diagonal_fold_distances(grid: np.ndarray, flat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(mean |A - B|, mean |B - B_flat|)`` per world for the diagonal fold (pairs of
+    :func:`diagonal_pairs`).
 
     Args:
         grid: Cloth grids ``(W, n, n, 3)``.
         flat: The same grids laid out flat at the start of the episode ``(W, n, n, 3)``.
     """
-    n = grid.shape[1]
-    r, c = np.nonzero(np.add.outer(np.arange(n), np.arange(n)) < n - 1)
-    a, b = grid[:, r, c], grid[:, n - 1 - c, n - 1 - r]
-    group = np.linalg.norm(a - b, axis=-1).mean(axis=1)
-    fixation = np.linalg.norm(b - flat[:, n - 1 - c, n - 1 - r], axis=-1).mean(axis=1)
-    return group, fixation
+    w, n = grid.shape[:2]
+    flat_b = np.asarray(flat, np.float64).reshape(w, n * n, 3)[:, diagonal_pairs(n)[1]]
+    return _pair_distances(np.asarray(grid).reshape(w, n * n, 3), flat_b, n)
 
 
 class ClothFoldDiagonalTask(ClothTask):
@@ -138,19 +156,28 @@ class ClothFoldDiagonalTask(ClothTask):
             builder.pin(handle.start + np.flatnonzero(self._under_block(offset, yaw)))
         return TaskVariant(builder, {"offset": offset, "yaw": np.float64(yaw)})
 
-    def flat_grid(self, offset: np.ndarray, yaw: np.ndarray) -> np.ndarray:
-        """The cloth as laid out flat on the table, ``(W, n, n, 3)``, for offsets ``(W, 2)`` and
-        yaws ``(W,)`` (the variant data; the same layout the scene builder uses)."""
+    def flat_points(self, offset: np.ndarray, yaw: np.ndarray, idx: np.ndarray | None = None) -> np.ndarray:
+        """Grid particles ``idx`` (flat grid indices, default all) of the cloth as laid out flat on
+        the table, ``(W, len(idx), 3)``, for offsets ``(W, 2)`` and yaws ``(W,)`` (the variant
+        data; the same layout the scene builder uses)."""
         n = self.resolution
+        if getattr(self, "_local_layout", None) is None:
+            s = np.linspace(-0.5 * CLOTH_SIZE, 0.5 * CLOTH_SIZE, n)
+            y, x = np.meshgrid(s, s, indexing="ij")
+            self._local_layout = np.stack([x.ravel(), y.ravel()], axis=1)
+        local = self._local_layout if idx is None else self._local_layout[idx]
         offset, yaw = np.atleast_2d(np.asarray(offset, np.float64)), np.atleast_1d(np.asarray(yaw, np.float64))
-        s = np.linspace(-0.5 * CLOTH_SIZE, 0.5 * CLOTH_SIZE, n)
-        y, x = np.meshgrid(s, s, indexing="ij")
-        c, si = np.cos(yaw)[:, None, None], np.sin(yaw)[:, None, None]
-        out = np.empty((len(yaw), n, n, 3))
-        out[..., 0] = c * x - si * y + offset[:, 0, None, None]
-        out[..., 1] = si * x + c * y + offset[:, 1, None, None]
+        c, si = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
+        out = np.empty((len(yaw), len(local), 3))
+        out[..., 0] = c * local[:, 0] - si * local[:, 1] + offset[:, 0, None]
+        out[..., 1] = si * local[:, 0] + c * local[:, 1] + offset[:, 1, None]
         out[..., 2] = self.particle_radius
         return out
+
+    def flat_grid(self, offset: np.ndarray, yaw: np.ndarray) -> np.ndarray:
+        """The cloth as laid out flat on the table, ``(W, n, n, 3)`` (see :meth:`flat_points`)."""
+        n = self.resolution
+        return self.flat_points(offset, yaw).reshape(-1, n, n, 3)
 
     def _under_block(self, offset: np.ndarray, yaw: float) -> np.ndarray:
         """Mask ``(n*n,)`` of grid particles under the pin block's footprint."""
@@ -163,8 +190,13 @@ class ClothFoldDiagonalTask(ClothTask):
 
     def metrics(self, positions: np.ndarray, ctx: Context) -> dict[str, np.ndarray]:
         bl, tr = self.grid_index(0, 0), self.grid_index(-1, -1)
-        group, fixation = diagonal_fold_distances(self.grid(positions).astype(np.float64),
-                                                  self.flat_grid(ctx["offset"], ctx["yaw"]))
+        n = self.resolution
+        cloth = positions[:, self.cloth_start:self.cloth_start + n * n]
+        key = (np.asarray(ctx["offset"]).tobytes(), np.asarray(ctx["yaw"]).tobytes(), cloth.dtype)
+        if getattr(self, "_flat_b", (None,))[0] != key:  # B laid out flat: fixed for an episode
+            flat = self.flat_points(ctx["offset"], ctx["yaw"], diagonal_pairs(n)[1]).astype(cloth.dtype)
+            self._flat_b = (key, flat)
+        group, fixation = _pair_distances(cloth, self._flat_b[1], n)
         return {"corner_distance": np.linalg.norm(positions[:, bl] - positions[:, tr], axis=-1),
                 "fold_group_distance": group, "fold_fixation_distance": fixation,
                 "fold_quality": 1.0 - (group + FIXATION_WEIGHT * fixation) / self.flat_group_distance}
