@@ -182,13 +182,15 @@ def speed_table(runs: Runs) -> str:
     rows = runs.particle_env_speed()
     table: dict[tuple[str, str], dict[str, Any]] = {}
     for r in rows:
-        table.setdefault((r["env"], r["action_mode"]), {"frames": r["frames"], "particles": r["particles"]})[r["obs"]] = \
-            r["cpu_env_steps_per_s"]
+        entry = table.setdefault((r["env"], r["action_mode"]), {"frames": r["frames"], "count": r["particles"],
+                                                                 "rates": {}})
+        entry["rates"][r["obs"]] = r["cpu_env_steps_per_s"]
     lines = ["| env | particles | action mode | state | image 32×32 | particles obs | frames/step |",
              "|---|---|---|---|---|---|---|"]
     for (env, mode), v in table.items():
-        lines.append(f"| {env} | {v['particles']} | {mode} | {_g(v.get('state'))} | {_g(v.get('image'))} | "
-                     f"{_g(v.get('particles'))} | {v['frames']} |")
+        rates = v["rates"]
+        lines.append(f"| {env} | {v['count']} | {mode} | {_g(rates.get('state'))} | {_g(rates.get('image'))} | "
+                     f"{_g(rates.get('particles'))} | {v['frames']} |")
     return "\n".join(lines) + stamp("speed-table", runs.s, "env steps per second of the calling thread's CPU time, "
                                                          "one env, default resolution and pickers, random actions")
 

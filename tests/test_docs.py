@@ -60,6 +60,7 @@ def test_tiny_run_into_a_copy_replaces_the_blocks_and_keeps_the_prose(tmp_path, 
     speed = blocks["speed-table"]
     rows = [line for line in speed.splitlines() if line.startswith("| StraightenRope-v0")]
     assert len(rows) == 2 and all(float(r.split("|")[4]) > 0 for r in rows)  # delta and pick_place, state rate
+    assert all(r.split("|")[2].strip() == "41" for r in rows)  # the rope's particle count
     readme = gen.find_blocks(after["README.md"])
     assert "| `ThreeBoxes-v0` | mean p̂ 1.000 (3 pickers, pick_place)" in readme["readme-expert-table"]
     assert readme["readme-speed-table"] == gen.find_blocks(before["README.md"])["readme-speed-table"]
