@@ -1,99 +1,183 @@
-"""Training throughput of the demonstration agents (DMfD) on a particle task.
+"""Learning speed on CPU: gradient updates and env steps per second of the learning agents.
 
-For each observation type (reduced state, 32×32 image) it measures, with the SPEC §6 network
-sizes (1024-1024, batch 256) unless told otherwise:
+For each network width (256 and 1024 by default; batch 256, state observations, delta
+actions, ``ClothFold-v0``, one torch thread unless told otherwise) and each agent (DMfD,
+AWAC, SAC-LfD, BC and plain SB3 SAC as the reference) it measures
 
-* ``env_steps_per_s`` — env steps with random actions (simulation + rendering only);
-* ``grad_steps_per_s`` — DMfD gradient steps (critic + actor + target update) on a filled buffer;
-* ``train_steps_per_s`` — ``DMfD.learn`` with one gradient step per env step (the real loop);
-  each such step is one env step *and* one gradient step.
+* ``updates_per_s`` — gradient updates (``train``) on a filled replay buffer (BC: minibatch
+  steps of ``learn`` on a demonstration set of the same size);
+* ``learn_steps_per_s`` — ``learn`` with one update per env step (the real loop; BC does not
+  step the env);
+* ``env_steps_per_s`` — the env alone with random actions, measured in the same rounds;
+
+and the ratios ``vs_sac`` (updates/s over SB3 SAC's at the same width) and ``vs_env``
+(learn steps/s over env-only steps/s).  The machine is usually shared, so every quantity is
+measured in interleaved rounds (each agent, then the env, then the next round) and the
+median over rounds is reported; ``updates_per_cpu_s`` divides by the thread's CPU time,
+which other processes disturb less.  The buffer holds random transitions: the cost of an
+update does not depend on the data.
 
 Usage::
 
-    python -m benchmarks.train_speed [--device cpu|cuda] [--env ClothFoldDiagonalPinned-v0]
-        [--steps 200] [--grad-steps 50] [--resolution 40] [--obs state image]
+    python -m benchmarks.train_speed [--env ClothFold-v0] [--widths 256 1024] [--agents dmfd awac sac_lfd bc sac]
+        [--rounds 3] [--updates 100] [--learn-steps 40] [--batch-size 256] [--threads 1] [--json]
 
-``agent_rows(...)`` returns the rows for ``benchmarks.speed`` tables.
+``agent_rows(...)`` returns the rows as dicts.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
+import statistics
 import time
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
+AGENTS = ("dmfd", "awac", "sac_lfd", "bc", "sac")
+NAMES = {"dmfd": "DMfD", "awac": "AWAC", "sac_lfd": "SAC-LfD", "bc": "BC", "sac": "SB3 SAC"}
 
-def _make_env(env_id: str, obs_mode: str, resolution: int | None, device: str | None):
+
+def _make_env(env_id: str):
     import gymnasium as gym
 
     import lfd_envs  # noqa: F401
 
-    kwargs: dict[str, Any] = dict(obs_mode=obs_mode, action_mode="delta")
-    if obs_mode != "state":
-        kwargs["image_size"] = 32
-    if resolution is not None:
-        kwargs["resolution"] = resolution
-    if device is not None:
-        try:
-            return gym.make(env_id, device=device, **kwargs)
-        except TypeError:
-            pass
-    return gym.make(env_id, **kwargs)
+    return gym.make(env_id, obs_mode="state", action_mode="delta")
 
 
-def _rate(n: int, seconds: float) -> float:
-    return float(n / seconds) if seconds > 0 else float("nan")
+def _fill(buffer: Any, n: int, rng: np.random.Generator) -> None:
+    """Write ``n`` random transitions into an SB3 ``ReplayBuffer`` (Box observations)."""
+    shape_o = buffer.observations.shape[1:]
+    shape_a = buffer.actions.shape[1:]
+    buffer.observations[:n] = rng.normal(size=(n, *shape_o))
+    buffer.next_observations[:n] = rng.normal(size=(n, *shape_o))
+    buffer.actions[:n] = rng.uniform(-1, 1, size=(n, *shape_a))
+    buffer.rewards[:n] = rng.normal(size=buffer.rewards[:n].shape)
+    buffer.dones[:n] = 0.0
+    buffer.pos, buffer.full = n % buffer.buffer_size, n == buffer.buffer_size
 
 
-def agent_rows(env_id: str = "ClothFoldDiagonalPinned-v0", obs_modes: Sequence[str] = ("state", "image"),
-               device: str = "cpu", steps: int = 200, grad_steps: int = 50, batch_size: int = 256,
-               net_arch: Sequence[int] = (1024, 1024), resolution: int | None = None,
-               sim_device: str | None = None, seed: int = 0) -> list[dict[str, Any]]:
-    """Throughput rows (one per observation mode) for DMfD on ``env_id``; see module docstring."""
-    import torch as th
+def _episodes(env: Any, n: int, rng: np.random.Generator, length: int = 100) -> list[dict[str, Any]]:
+    """Random episodes (dicts as :func:`lfd_agents.demos.load_episodes` takes) with ``n`` steps in all."""
+    obs_dim = env.observation_space.shape[0]
+    act_dim = env.action_space.shape[0]
+    episodes = []
+    for start in range(0, n, length):
+        t = min(length, n - start)
+        episodes.append({"observations": rng.normal(size=(t + 1, obs_dim)).astype(np.float32),
+                         "actions": rng.uniform(-1, 1, (t, act_dim)).astype(np.float32),
+                         "rewards": rng.normal(size=t), "terminations": np.zeros(t, bool),
+                         "truncations": np.eye(1, t, t - 1, dtype=bool)[0]})
+    return episodes
 
-    from lfd_agents import DMfD
 
+def _build(agent: str, env: Any, width: int, batch_size: int, buffer_rows: int, seed: int) -> Any:
+    from stable_baselines3 import SAC
+    from stable_baselines3.common.logger import configure
+
+    from lfd_agents import AWAC, BC, DMfD, SACLfD
+
+    rng = np.random.default_rng(seed)
+    arch = dict(net_arch=[width, width])
+    common = dict(buffer_size=2 * buffer_rows, batch_size=batch_size, learning_starts=0, seed=seed, device="cpu")
+    if agent == "bc":
+        model = BC("MlpPolicy", env, demonstrations=_episodes(env, buffer_rows, rng), batch_size=batch_size,
+                   policy_kwargs=arch, seed=seed, device="cpu")
+    elif agent == "dmfd":
+        model = DMfD("MlpPolicy", env, rsi_prob=0.0, policy_kwargs=arch, **common)
+    elif agent == "awac":
+        model = AWAC("MlpPolicy", env, offline_steps=0, policy_kwargs=arch, **common)
+    elif agent == "sac_lfd":
+        model = SACLfD("MlpPolicy", env, policy_kwargs=arch, **common)
+    elif agent == "sac":
+        model = SAC("MlpPolicy", env, policy_kwargs=arch, **common)
+    else:
+        raise ValueError(f"unknown agent {agent!r}; choose from {AGENTS}")
+    if agent != "bc":
+        _fill(model.replay_buffer, buffer_rows, rng)
+        model.set_logger(configure(None, []))
+    return model
+
+
+def _timed(fn: Callable[[], Any]) -> tuple[float, float]:
+    t0, c0 = time.perf_counter(), time.thread_time()
+    fn()
+    return time.perf_counter() - t0, time.thread_time() - c0
+
+
+def _updates(model: Any, agent: str, n: int, batch_size: int) -> Callable[[], int]:
+    """A callable running about ``n`` updates; returns how many it ran."""
+    if agent == "bc":
+        per_epoch = -(-model.dataset.size() // model.batch_size)
+        epochs = max(1, round(n / per_epoch))
+        return lambda: (model.learn(epochs=epochs, log_interval=0), epochs * per_epoch)[1]
+    return lambda: (model.train(n, batch_size), n)[1]
+
+
+def _env_steps(env: Any, n: int, rng: np.random.Generator) -> None:
+    for _ in range(n):
+        _, _, term, trunc, _ = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
+        if term or trunc:
+            env.reset()
+
+
+def agent_rows(env_id: str = "ClothFold-v0", widths: Sequence[int] = (256, 1024), agents: Sequence[str] = AGENTS,
+               rounds: int = 3, updates: int = 100, learn_steps: int = 40, batch_size: int = 256,
+               buffer_rows: int = 2_000, seed: int = 0, log: Callable[[str], None] | None = None
+               ) -> list[dict[str, Any]]:
+    """One row per (width, agent); see the module docstring. Counts are per round at width 256;
+    wider networks run ``(256/width)``-scaled counts (at least 10 updates and 10 steps)."""
+    unknown = [a for a in agents if a not in AGENTS]
+    if unknown or rounds < 1 or updates < 1 or learn_steps < 1:
+        raise ValueError(f"agents must be among {AGENTS} (got {unknown}); rounds, updates, learn_steps >= 1")
     rows = []
-    for obs_mode in obs_modes:
-        env = _make_env(env_id, obs_mode, resolution, sim_device)
-        rng = np.random.default_rng(seed)
+    for width in widths:
+        scale = min(1.0, 256 / width)
+        n_upd, n_learn = max(10, int(updates * scale)), max(10, int(learn_steps * scale))
+        env = _make_env(env_id)
         env.reset(seed=seed)
-        env.step(env.action_space.sample())  # warm-up (kernel loads)
-        t0 = time.perf_counter()
-        for _ in range(steps):
-            _, _, term, trunc, _ = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
-            if term or trunc:
-                env.reset()
-        env_rate = _rate(steps, time.perf_counter() - t0)
-
-        policy = "MlpPolicy" if obs_mode == "state" else ("CnnPolicy" if obs_mode == "image" else "MultiInputPolicy")
-        model = DMfD(policy, env, buffer_size=max(10 * steps, 2 * batch_size), batch_size=batch_size,
-                     learning_starts=max(steps, batch_size), rsi_prob=0.0, device=device, seed=seed,
-                     policy_kwargs=dict(net_arch=list(net_arch)))
-        model.learn(max(steps, batch_size))  # random-action warm-up fills the buffer, no training
-        model.train(3, batch_size)  # warm-up
-        if device.startswith("cuda"):
-            th.cuda.synchronize()
-        t0 = time.perf_counter()
-        model.train(grad_steps, batch_size)
-        if device.startswith("cuda"):
-            th.cuda.synchronize()
-        grad_rate = _rate(grad_steps, time.perf_counter() - t0)
-
-        model.learning_starts = 0
-        t0 = time.perf_counter()
-        model.learn(steps, reset_num_timesteps=False)
-        train_rate = _rate(steps, time.perf_counter() - t0)
-        obs_name = obs_mode if obs_mode == "state" else f"{obs_mode} 32x32"
-        rows.append({"agent": "DMfD", "env": env_id, "obs": obs_name,
-                     "device": device, "net": "-".join(map(str, net_arch)), "batch": batch_size,
-                     "env_steps_per_s": round(env_rate, 1), "grad_steps_per_s": round(grad_rate, 1),
-                     "train_steps_per_s": round(train_rate, 1)})
+        rng = np.random.default_rng(seed)
+        _env_steps(env, 5, rng)  # warm-up (kernel loads)
+        models = {a: _build(a, env, width, batch_size, buffer_rows, seed) for a in agents}
+        runs = {a: _updates(m, a, n_upd, batch_size) for a, m in models.items()}
+        for a, m in models.items():  # warm-up: first calls allocate, and learn() resets the env once
+            _updates(m, a, 2, batch_size)()
+            if a != "bc":
+                m.learn(2, reset_num_timesteps=False)
+        upd: dict[str, list[tuple[float, float]]] = {a: [] for a in agents}
+        lrn: dict[str, list[float]] = {a: [] for a in agents if a != "bc"}
+        env_rates: list[tuple[float, float]] = []
+        for r in range(rounds):
+            for a, m in models.items():
+                count = [0]
+                wall, cpu = _timed(lambda: count.__setitem__(0, runs[a]()))
+                upd[a].append((count[0] / wall, count[0] / cpu))
+                if a != "bc":
+                    wall, _ = _timed(lambda: m.learn(n_learn, reset_num_timesteps=False))
+                    lrn[a].append(n_learn / wall)
+            env.reset()
+            wall, cpu = _timed(lambda: _env_steps(env, n_learn, rng))
+            env_rates.append((n_learn / wall, n_learn / cpu))
+            if log:
+                log(f"width {width}: round {r + 1}/{rounds} done")
+        env_rate = statistics.median(w for w, _ in env_rates)
+        ref = statistics.median(w for w, _ in upd["sac"]) if "sac" in upd else float("nan")
+        for a in agents:
+            u = statistics.median(w for w, _ in upd[a])
+            row = {"agent": NAMES[a], "net": f"{width}-{width}", "updates_per_s": round(u, 1),
+                   "updates_per_cpu_s": round(statistics.median(c for _, c in upd[a]), 1),
+                   "vs_sac": round(u / ref, 2)}
+            if a in lrn:
+                s = statistics.median(lrn[a])
+                row.update(learn_steps_per_s=round(s, 1), env_steps_per_s=round(env_rate, 1),
+                           vs_env=round(s / env_rate, 2))
+            else:
+                row.update(learn_steps_per_s=None, env_steps_per_s=round(env_rate, 1), vs_env=None)
+            rows.append(row)
         env.close()
     return rows
 
@@ -102,34 +186,36 @@ def _print(rows: list[dict[str, Any]]) -> None:
     if not rows:
         return
     keys = list(rows[0])
-    print(" | ".join(keys))
+    print("| " + " | ".join(keys) + " |")
+    print("|" + "---|" * len(keys))
     for r in rows:
-        print(" | ".join(str(r[k]) for k in keys))
+        print("| " + " | ".join("-" if r[k] is None else str(r[k]) for k in keys) + " |")
 
 
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--env", default="ClothFoldDiagonalPinned-v0")
-    p.add_argument("--obs", nargs="+", default=["state", "image"])
-    p.add_argument("--device", default="cpu", help="torch device of the networks")
-    p.add_argument("--sim-device", default=None, help="Warp device of the simulator (env default when omitted)")
-    p.add_argument("--steps", type=int, default=200)
-    p.add_argument("--grad-steps", type=int, default=50)
+    p.add_argument("--env", default="ClothFold-v0")
+    p.add_argument("--widths", type=int, nargs="+", default=[256, 1024])
+    p.add_argument("--agents", nargs="+", default=list(AGENTS), choices=AGENTS)
+    p.add_argument("--rounds", type=int, default=3)
+    p.add_argument("--updates", type=int, default=100, help="updates per agent and round at width 256")
+    p.add_argument("--learn-steps", type=int, default=40, help="learn() env steps per agent and round at width 256")
     p.add_argument("--batch-size", type=int, default=256)
-    p.add_argument("--net", type=int, nargs="+", default=[1024, 1024])
-    p.add_argument("--resolution", type=int, default=None)
-    p.add_argument("--threads", type=int, default=None, help="torch CPU threads")
+    p.add_argument("--threads", type=int, default=1, help="torch CPU threads")
     p.add_argument("--json", action="store_true")
     args = p.parse_args(argv)
     import torch as th
 
-    if args.threads:
-        th.set_num_threads(args.threads)
+    th.set_num_threads(args.threads)
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"python {platform.python_version()}, torch {th.__version__}, {platform.processor() or platform.machine()}, "
-          f"torch threads {th.get_num_threads()}, cuda {th.cuda.get_device_name(0) if th.cuda.is_available() else 'none'}")
-    rows = agent_rows(args.env, args.obs, args.device, args.steps, args.grad_steps, args.batch_size, args.net,
-                      args.resolution, args.sim_device)
+          f"{os.cpu_count()} CPUs, torch threads {th.get_num_threads()}, load average {load:.2f}; "
+          f"{args.env} state/delta, batch {args.batch_size}", flush=True)
+    rows = agent_rows(args.env, args.widths, args.agents, args.rounds, args.updates, args.learn_steps,
+                      args.batch_size, log=lambda s: print(s, flush=True))
     print(json.dumps(rows, indent=1)) if args.json else _print(rows)
+    if hasattr(os, "getloadavg"):
+        print(f"load average at the end {os.getloadavg()[0]:.2f}")
 
 
 if __name__ == "__main__":

@@ -1,6 +1,8 @@
 """Learning-from-demonstration baselines with the SB3 API (SPEC §6): SAC-LfD, BC and AWAC.
 
-* :class:`SACLfD` — SB3 ``SAC`` whose replay buffer starts full of demonstrations.
+* :class:`SACLfD` — SB3 ``SAC`` whose replay buffer starts full of demonstrations (twin critics
+  in one :class:`~lfd_agents.networks.EnsembleCritic`, fused Adam and an update step with
+  the same arithmetic as SB3's but without its per-update overhead).
 * :class:`BC` — behaviour cloning of demonstration actions (state, image or Dict observations;
   MSE on the mean of a :class:`~lfd_agents.networks.GaussianActor`); ``learn`` runs epochs
   over the dataset and never touches the env.
@@ -27,17 +29,54 @@ from stable_baselines3.common.buffers import DictReplayBuffer, ReplayBuffer
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, FlattenExtractor
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
+from stable_baselines3.common.utils import polyak_update
+from stable_baselines3.sac.policies import CnnPolicy as SACCnnPolicy
+from stable_baselines3.sac.policies import MultiInputPolicy as SACMultiInputPolicy
+from stable_baselines3.sac.policies import SACPolicy
 from torch import nn
 
 from lfd_agents.augment import augment_observations, image_keys
 from lfd_agents.demos import fill_replay_buffer, load_episodes
 from lfd_agents.dmfd import DMfD
-from lfd_agents.networks import DictPolicyDefaults, GaussianActor, ImagePolicyDefaults
+from lfd_agents.networks import (DictPolicyDefaults, EnsembleCritic, GaussianActor, ImagePolicyDefaults,
+                                 fast_optimizer_kwargs, frozen, normal_log_prob, polyak_update_, q_values)
 
 
 # ----------------------------------------------------------------------------------- SAC-LfD
+class _FastSACPolicyMixin:
+    """SAC policy pieces for a fast update: the critics as one :class:`EnsembleCritic` (same
+    initial weights for a seed as SB3's ``ContinuousCritic``) and fused Adam."""
+
+    def __init__(self, *args: Any, optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
+                 optimizer_kwargs: dict[str, Any] | None = None, **kwargs: Any):
+        super().__init__(*args, optimizer_class=optimizer_class,
+                         optimizer_kwargs=fast_optimizer_kwargs(optimizer_class, optimizer_kwargs or {}), **kwargs)
+
+    def make_critic(self, features_extractor: BaseFeaturesExtractor | None = None) -> EnsembleCritic:
+        critic_kwargs = self._update_features_extractor(self.critic_kwargs, features_extractor)
+        return EnsembleCritic(**critic_kwargs).to(self.device)
+
+
+class SACLfDPolicy(_FastSACPolicyMixin, SACPolicy):
+    """SB3 ``SACPolicy`` with an :class:`EnsembleCritic` and fused Adam (state observations)."""
+
+
+class SACLfDCnnPolicy(_FastSACPolicyMixin, SACCnnPolicy):
+    """SB3 SAC ``CnnPolicy`` with an :class:`EnsembleCritic` and fused Adam."""
+
+
+class SACLfDMultiInputPolicy(_FastSACPolicyMixin, SACMultiInputPolicy):
+    """SB3 SAC ``MultiInputPolicy`` with an :class:`EnsembleCritic` and fused Adam."""
+
+
 class SACLfD(SAC):
     """SB3 SAC with the replay buffer pre-filled with demonstrations ("replay-buffer spiking").
+
+    The update is SB3 SAC's, operation for operation (same batches, same random draws, same
+    losses for a seed), run with fused twin critics, fused Adam and the target update in two
+    fused calls, without critic weight gradients in the actor's backward pass and without a
+    ``.item()`` per update (logged values are read once per ``train`` call).  gSDE falls back
+    to SB3's own ``train``.
 
     Args:
         policy, env: as for ``SAC``.
@@ -46,6 +85,9 @@ class SACLfD(SAC):
         learning_starts: 0 by default (the buffer already holds data).
         **kwargs: every other ``SAC`` argument.
     """
+
+    policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {
+        "MlpPolicy": SACLfDPolicy, "CnnPolicy": SACLfDCnnPolicy, "MultiInputPolicy": SACLfDMultiInputPolicy}
 
     def __init__(self, policy: Any, env: GymEnv | str | None, demonstrations: Any = None,
                  duplicate_demos: bool | int = False, learning_starts: int = 0, _init_setup_model: bool = True,
@@ -67,6 +109,74 @@ class SACLfD(SAC):
 
     def _excluded_save_params(self) -> list[str]:
         return super()._excluded_save_params() + ["_episodes"]
+
+    def _action_log_prob(self, obs: Any) -> tuple[th.Tensor, th.Tensor]:
+        """Squashed-Gaussian action and its log-likelihood (SB3's ``Actor.action_log_prob``,
+        same operations and random draws, no distribution objects)."""
+        mean, log_std, _ = self.actor.get_action_dist_params(obs)
+        std = log_std.exp()
+        gaussian = mean + th.randn_like(mean) * std
+        actions = th.tanh(gaussian)
+        logp = normal_log_prob(gaussian, mean, std)
+        logp = logp - th.sum(th.log(1 - actions ** 2 + self.actor.action_dist.epsilon), dim=1)
+        return actions, logp
+
+    def train(self, gradient_steps: int, batch_size: int = 64) -> None:
+        if self.use_sde:
+            return super().train(gradient_steps, batch_size)
+        self.policy.set_training_mode(True)
+        optimizers = [self.actor.optimizer, self.critic.optimizer]
+        if self.ent_coef_optimizer is not None:
+            optimizers += [self.ent_coef_optimizer]
+        self._update_learning_rate(optimizers)
+        critic_params = list(self.critic.parameters())
+        target_params = list(self.critic_target.parameters())
+        learn_ent = self.ent_coef_optimizer is not None and self.log_ent_coef is not None
+        logs: list[th.Tensor] = []  # (ent_coef, actor_loss, critic_loss[, ent_coef_loss]) per update
+        for gradient_step in range(gradient_steps):
+            data = self.replay_buffer.sample(batch_size, env=self._vec_normalize_env)  # type: ignore[union-attr]
+            discounts = data.discounts if data.discounts is not None else self.gamma
+            actions_pi, log_prob = self._action_log_prob(data.observations)
+            log_prob = log_prob.reshape(-1, 1)
+            if learn_ent:
+                ent_coef = th.exp(self.log_ent_coef.detach())
+                ent_coef_loss = -(self.log_ent_coef * (log_prob + self.target_entropy).detach()).mean()
+                self.ent_coef_optimizer.zero_grad()
+                ent_coef_loss.backward()
+                self.ent_coef_optimizer.step()
+            else:
+                ent_coef = self.ent_coef_tensor
+            with th.no_grad():
+                next_actions, next_log_prob = self._action_log_prob(data.next_observations)
+                next_q = q_values(self.critic_target, data.next_observations, next_actions).min(dim=0).values
+                next_q = next_q.unsqueeze(1) - ent_coef * next_log_prob.reshape(-1, 1)
+                target_q = data.rewards + (1 - data.dones) * discounts * next_q
+            current_q = q_values(self.critic, data.observations, data.actions)
+            critic_loss = 0.5 * F.mse_loss(current_q, target_q.t().expand_as(current_q),
+                                           reduction="none").mean(dim=1).sum()
+            self.critic.optimizer.zero_grad()
+            critic_loss.backward()
+            self.critic.optimizer.step()
+            with frozen(self.critic):  # the actor's loss needs dQ/da, not the critic's weight gradients
+                min_qf_pi = q_values(self.critic, data.observations, actions_pi).min(dim=0).values.unsqueeze(1)
+            actor_loss = (ent_coef * log_prob - min_qf_pi).mean()
+            self.actor.optimizer.zero_grad()
+            actor_loss.backward()
+            self.actor.optimizer.step()
+            if gradient_step % self.target_update_interval == 0:
+                polyak_update_(critic_params, target_params, self.tau)
+                if self.batch_norm_stats:
+                    polyak_update(self.batch_norm_stats, self.batch_norm_stats_target, 1.0)
+            values = [ent_coef.reshape(1), actor_loss.detach().reshape(1), critic_loss.detach().reshape(1)]
+            if learn_ent:
+                values.append(ent_coef_loss.detach().reshape(1))
+            logs.append(th.cat(values))
+        self._n_updates += gradient_steps
+        self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
+        if logs:
+            means = th.stack(logs).double().mean(dim=0).tolist()
+            for key, value in zip(("ent_coef", "actor_loss", "critic_loss", "ent_coef_loss"), means):
+                self.logger.record(f"train/{key}", value)
 
 
 # ----------------------------------------------------------------------------------- AWAC
@@ -119,7 +229,8 @@ class BCPolicy(BasePolicy):
         fe = features_extractor_class(observation_space, **kwargs)
         self.actor = GaussianActor(observation_space, action_space, self.net_arch, fe, fe.features_dim,
                                    activation_fn, normalize_images)
-        self.optimizer = optimizer_class(self.parameters(), lr=lr_schedule(1), **self.optimizer_kwargs)
+        self.optimizer = optimizer_class(self.parameters(), lr=lr_schedule(1),
+                                         **fast_optimizer_kwargs(optimizer_class, self.optimizer_kwargs))
 
     def _get_constructor_parameters(self) -> dict[str, Any]:
         data = super()._get_constructor_parameters()
@@ -138,7 +249,7 @@ class BCPolicy(BasePolicy):
 
     def mean_action(self, obs: Any) -> th.Tensor:
         """Predicted action in [-1, 1] (differentiable)."""
-        return self.actor.distribution(obs).mean
+        return self.actor.mean_action(obs)
 
 
 class BCCnnPolicy(ImagePolicyDefaults, BCPolicy):
@@ -248,7 +359,7 @@ class BC(BaseAlgorithm):
             self._update_current_progress_remaining(epoch, max(n_epochs, 1))
             self._update_learning_rate(self.policy.optimizer)
             perm = np.random.permutation(n)
-            losses = []
+            losses = []  # tensors, read once per epoch
             for i in range(0, n, self.batch_size):
                 data = self.dataset._get_samples(perm[i:i + self.batch_size])
                 obs = augment_observations(data.observations, self._aug_keys, self.aug_pad)
@@ -256,10 +367,10 @@ class BC(BaseAlgorithm):
                 self.policy.optimizer.zero_grad()
                 loss.backward()
                 self.policy.optimizer.step()
-                losses.append(loss.item())
+                losses.append(loss.detach())
             self._n_updates += len(losses)
             self.logger.record("train/epoch", epoch + 1)
-            self.logger.record("train/bc_loss", float(np.mean(losses)))
+            self.logger.record("train/bc_loss", float(th.stack(losses).double().mean()))
             self.logger.record("train/n_updates", self._n_updates)
             self.logger.record("time/elapsed_s", time.time() - start)
             if log_interval and (epoch + 1) % log_interval == 0:

@@ -32,27 +32,26 @@ Example::
 from __future__ import annotations
 
 import warnings
-from collections import defaultdict
 from typing import Any, ClassVar, Sequence
 
 import gymnasium as gym
-import numpy as np
 import torch as th
 import torch.nn.functional as F
 from gymnasium import spaces
 from stable_baselines3.common.buffers import DictReplayBuffer, ReplayBuffer
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.policies import BasePolicy, ContinuousCritic
+from stable_baselines3.common.save_util import load_from_zip_file
 from stable_baselines3.common.torch_layers import BaseFeaturesExtractor, FlattenExtractor
 from stable_baselines3.common.type_aliases import GymEnv, ReplayBufferSamples, Schedule
-from stable_baselines3.common.utils import polyak_update
 from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 from torch import nn
 
 from lfd_agents.augment import augment_observations, image_keys
 from lfd_agents.demos import episodes_with_states, fill_replay_buffer, load_episodes
-from lfd_agents.networks import (DictPolicyDefaults, GaussianActor, ImagePolicyDefaults, KeySubsetExtractor,
-                                 log_prob)
+from lfd_agents.networks import (DictPolicyDefaults, EnsembleCritic, GaussianActor, ImagePolicyDefaults,
+                                 KeySubsetExtractor, fast_optimizer_kwargs, frozen, normal_log_prob, polyak_update_,
+                                 q_values)
 from lfd_agents.rsi import ReferenceStateInit
 
 DEFAULT_NET_ARCH = (1024, 1024)
@@ -98,6 +97,48 @@ def _cat_samples(a: ReplayBufferSamples, b: ReplayBufferSamples) -> ReplayBuffer
     return type(a)(*(cat(x, y) for x, y in zip(a, b)))
 
 
+def _ensemble_optimizer_state(old: dict[str, Any], critic: EnsembleCritic, current: dict[str, Any]) -> dict[str, Any]:
+    """The state of an optimiser over a ``ContinuousCritic`` (encoder, then ``qf0``, ``qf1``, ...)
+    re-laid out for the same critics as an :class:`EnsembleCritic` (``w0, b0, w1, ...``, then the
+    encoder): per-parameter moment tensors are stacked like the weights; ``fused``/``foreach``
+    come from the current optimiser."""
+    n, n_layers = critic.n_critics, critic.n_layers
+    n_fe = len(list(critic.features_extractor.parameters()))
+    old_state = old["state"]
+
+    def gather(ids: list[int], is_weight: bool) -> dict[str, Any] | None:
+        states = [old_state.get(i) for i in ids]
+        if any(s is None for s in states):
+            return None
+        out = {}
+        for key, value in states[0].items():
+            if not th.is_tensor(value) or value.dim() == 0:  # e.g. the step count (one tensor per parameter)
+                out[key] = value.clone() if th.is_tensor(value) else value
+            elif is_weight:
+                out[key] = th.stack([s[key].t() for s in states])
+            else:
+                out[key] = th.stack([s[key] for s in states]).unsqueeze(1)
+        return out
+
+    state: dict[int, Any] = {}
+    k = 0
+    for j in range(n_layers):
+        for kind in (0, 1):  # weight, bias of layer j of every critic
+            moved = gather([n_fe + i * 2 * n_layers + 2 * j + kind for i in range(n)], kind == 0)
+            if moved is not None:
+                state[k] = moved
+            k += 1
+    for f in range(n_fe):
+        if f in old_state:
+            state[k] = {key: v.clone() if th.is_tensor(v) else v for key, v in old_state[f].items()}
+        k += 1
+    group = {**old["param_groups"][0], "params": list(range(k))}
+    for key in ("fused", "foreach"):
+        if key in current["param_groups"][0]:
+            group[key] = current["param_groups"][0][key]
+    return {"state": state, "param_groups": [group]}
+
+
 def _missing(x: Any, y: Any) -> Any:
     raise ValueError("cannot mix batches with and without an optional field (different buffer classes)")
 
@@ -128,6 +169,10 @@ def _resolve_actor_keys(space: spaces.Space, actor_keys: Sequence[str] | str | N
 class DMfDPolicy(BasePolicy):
     """Gaussian actor + twin critics (+ target critics) with separate features extractors.
 
+    The critics are one :class:`~lfd_agents.networks.EnsembleCritic` (all Q networks in one
+    batched module; same initial weights for a seed as SB3's ``ContinuousCritic``).  Adam runs
+    fused unless ``optimizer_kwargs`` choose ``foreach``/``fused`` themselves.
+
     Args:
         observation_space, action_space, lr_schedule: given by the algorithm.
         net_arch: hidden sizes, shared by actor and critics, or ``dict(pi=[...], qf=[...])``.
@@ -142,8 +187,8 @@ class DMfDPolicy(BasePolicy):
     """
 
     actor: GaussianActor
-    critic: ContinuousCritic
-    critic_target: ContinuousCritic
+    critic: EnsembleCritic
+    critic_target: EnsembleCritic
 
     def __init__(self, observation_space: spaces.Space, action_space: spaces.Box, lr_schedule: Schedule,
                  net_arch: Sequence[int] | dict[str, Sequence[int]] | None = None,
@@ -184,7 +229,7 @@ class DMfDPolicy(BasePolicy):
         self.actor = GaussianActor(self.observation_space, self.action_space, self.net_arch_pi, actor_fe,
                                    actor_fe.features_dim, self.activation_fn, self.normalize_images,
                                    self.log_std_bounds)
-        opt_kwargs = dict(self.optimizer_kwargs)
+        opt_kwargs = fast_optimizer_kwargs(self.optimizer_class, self.optimizer_kwargs)
         actor_kwargs = {**opt_kwargs, "weight_decay": self.actor_weight_decay}
         self.actor.optimizer = self.optimizer_class(self.actor.parameters(), lr=lr_schedule(1), **actor_kwargs)
         self.critic = self._make_critic()
@@ -193,11 +238,11 @@ class DMfDPolicy(BasePolicy):
         self.critic_target.set_training_mode(False)
         self.critic.optimizer = self.optimizer_class(self.critic.parameters(), lr=lr_schedule(1), **opt_kwargs)
 
-    def _make_critic(self) -> ContinuousCritic:
+    def _make_critic(self) -> EnsembleCritic:
         fe = self._extractor(None)
-        return ContinuousCritic(self.observation_space, self.action_space, self.net_arch_qf, fe, fe.features_dim,
-                                self.activation_fn, self.normalize_images, self.n_critics,
-                                share_features_extractor=False)
+        return EnsembleCritic(self.observation_space, self.action_space, self.net_arch_qf, fe, fe.features_dim,
+                              self.activation_fn, self.normalize_images, self.n_critics,
+                              share_features_extractor=False)
 
     def _get_constructor_parameters(self) -> dict[str, Any]:
         data = super()._get_constructor_parameters()
@@ -278,8 +323,8 @@ class DMfD(OffPolicyAlgorithm):
         "MlpPolicy": DMfDPolicy, "CnnPolicy": DMfDCnnPolicy, "MultiInputPolicy": DMfDMultiInputPolicy}
     policy: DMfDPolicy
     actor: GaussianActor
-    critic: ContinuousCritic
-    critic_target: ContinuousCritic
+    critic: EnsembleCritic
+    critic_target: EnsembleCritic
 
     def __init__(self, policy: str | type[DMfDPolicy], env: GymEnv | str | None, demonstrations: Any = None,
                  learning_rate: float | Schedule = 3e-4, buffer_size: int = 600_000, learning_starts: int = 0,
@@ -412,6 +457,21 @@ class DMfD(OffPolicyAlgorithm):
     def _get_torch_save_params(self) -> tuple[list[str], list[str]]:
         return ["policy", "actor.optimizer", "critic.optimizer"], []
 
+    def set_parameters(self, load_path_or_dict: str | dict[str, Any], exact_match: bool = True,
+                       device: th.device | str = "auto") -> None:
+        """SB3 ``set_parameters``; also loads files saved when the critics were separate
+        ``ContinuousCritic`` MLPs (weights and critic optimiser state are re-laid out)."""
+        if isinstance(load_path_or_dict, dict):
+            params = dict(load_path_or_dict)
+        else:
+            _, params, _ = load_from_zip_file(load_path_or_dict, device=device)
+        old = params.get("critic.optimizer")
+        if isinstance(self.critic, EnsembleCritic) and isinstance(old, dict) and old.get("param_groups"):
+            current = self.critic.optimizer.state_dict()
+            if len(old["param_groups"][0]["params"]) != len(current["param_groups"][0]["params"]):
+                params["critic.optimizer"] = _ensemble_optimizer_state(old, self.critic, current)
+        super().set_parameters(params, exact_match=exact_match, device=device)
+
     # ------------------------------------------------------------------ losses
     def augment_batch(self, data: ReplayBufferSamples) -> ReplayBufferSamples:
         """Random-shift the image entries of ``observations`` and ``next_observations``."""
@@ -421,60 +481,75 @@ class DMfD(OffPolicyAlgorithm):
                              next_observations=augment_observations(data.next_observations, self._aug_keys,
                                                                     self.aug_pad))
 
-    def _min_q(self, critic: ContinuousCritic, obs: Any, actions: th.Tensor) -> th.Tensor:
-        return th.min(th.cat(critic(obs, actions), dim=1), dim=1).values
+    def _min_q(self, critic: EnsembleCritic | ContinuousCritic, obs: Any, actions: th.Tensor) -> th.Tensor:
+        return q_values(critic, obs, actions).min(dim=0).values
 
     def critic_loss(self, data: ReplayBufferSamples) -> dict[str, th.Tensor]:
-        """Sum over critics of MSE(Q_i(s, a_B), y); returns ``loss``, ``target`` and ``q``."""
+        """Sum over critics of MSE(Q_i(s, a_B), y); returns ``loss``, ``target`` and ``q`` (batch, n_critics)."""
         with th.no_grad():
-            dist = self.actor.distribution(data.next_observations)
-            next_actions = dist.sample()
+            mean, std = self.actor.mean_std(data.next_observations)
+            next_actions = mean + th.randn_like(mean) * std  # a' ~ π(·|s') (the draws of Normal.sample)
             next_q = self._min_q(self.critic_target, data.next_observations, next_actions)
-            target = td_target(self.reward_scale * data.rewards.flatten(), data.dones.flatten(), next_q,
-                               log_prob(dist, next_actions), gamma=self.gamma, target_ent_coef=self.target_ent_coef)
-        qs = self.critic(data.observations, data.actions)
-        loss = sum(F.mse_loss(q.flatten(), target) for q in qs)
-        return {"loss": loss, "target": target, "q": th.cat(qs, dim=1).detach()}
+            next_logp = normal_log_prob(next_actions, mean, std) if self.target_ent_coef else th.zeros_like(next_q)
+            target = td_target(self.reward_scale * data.rewards.flatten(), data.dones.flatten(), next_q, next_logp,
+                               gamma=self.gamma, target_ent_coef=self.target_ent_coef)
+        q = q_values(self.critic, data.observations, data.actions)
+        loss = F.mse_loss(q, target.expand_as(q), reduction="none").mean(dim=1).sum()
+        return {"loss": loss, "target": target, "q": q.detach().t()}
 
     def actor_loss(self, data: ReplayBufferSamples) -> dict[str, th.Tensor]:
-        """DMfD actor loss on a batch (see :func:`dmfd_actor_loss`)."""
-        dist = self.actor.distribution(data.observations)
-        pi_actions = dist.rsample()
-        q_pi = self._min_q(self.critic, data.observations, pi_actions)
-        with th.no_grad():
-            advantages = self._min_q(self.critic, data.observations, data.actions) - q_pi
-        out = dmfd_actor_loss(log_prob(dist, data.actions), advantages, log_prob(dist, pi_actions), q_pi,
-                              temperature=self.awr_temperature, ent_coef=self.ent_coef,
-                              entropy_weight=self.entropy_weight)
+        """DMfD actor loss on a batch (see :func:`dmfd_actor_loss`).
+
+        The critic's parameters take no gradient from it (the actor's optimiser ignores them).
+        """
+        mean, std = self.actor.mean_std(data.observations)
+        pi_actions = mean + th.randn_like(mean) * std  # reparameterised a_π ~ π(·|o)
+        critic = self.critic
+        with frozen(critic):
+            if isinstance(critic, EnsembleCritic):  # encode the observations once for both action sets
+                with th.no_grad():
+                    features = critic.features(data.observations)
+                    q_buffer = critic.q_from_features(features, data.actions).min(dim=0).values
+                q_pi = critic.q_from_features(features, pi_actions).min(dim=0).values
+            else:
+                with th.no_grad():
+                    q_buffer = self._min_q(critic, data.observations, data.actions)
+                q_pi = self._min_q(critic, data.observations, pi_actions)
+        advantages = q_buffer - q_pi.detach()
+        out = dmfd_actor_loss(normal_log_prob(data.actions, mean, std), advantages,
+                              normal_log_prob(pi_actions, mean, std), q_pi, temperature=self.awr_temperature,
+                              ent_coef=self.ent_coef, entropy_weight=self.entropy_weight)
         out["advantages"] = advantages
         return out
 
     # ------------------------------------------------------------------ training
+    _LOG_KEYS = ("critic_loss", "actor_loss", "awr_loss", "entropy_loss", "max_weight")
+
     def train(self, gradient_steps: int, batch_size: int = 256) -> None:
         self.policy.set_training_mode(True)
         self._update_learning_rate([self.actor.optimizer, self.critic.optimizer])
-        logs: dict[str, list[float]] = defaultdict(list)
+        critic_params = list(self.critic.parameters())
+        target_params = list(self.critic_target.parameters())
+        logs: list[th.Tensor] = []  # one small tensor per update, read once at the end (no per-update .item())
         for _ in range(gradient_steps):
             data = self.augment_batch(self.sample_batch(batch_size))
             critic = self.critic_loss(data)
-            self.critic.optimizer.zero_grad()
+            self.critic.optimizer.zero_grad(set_to_none=True)
             critic["loss"].backward()
             self.critic.optimizer.step()
             actor = self.actor_loss(data)
-            self.actor.optimizer.zero_grad()
+            self.actor.optimizer.zero_grad(set_to_none=True)
             actor["loss"].backward()
             self.actor.optimizer.step()
-            polyak_update(self.critic.parameters(), self.critic_target.parameters(), self.tau)
-            logs["critic_loss"].append(critic["loss"].item())
-            logs["actor_loss"].append(actor["loss"].item())
-            logs["awr_loss"].append(actor["awr_loss"].item())
-            logs["entropy_loss"].append(actor["entropy_loss"].item())
-            logs["max_weight"].append(actor["weights"].max().item())
+            polyak_update_(critic_params, target_params, self.tau)
+            logs.append(th.stack([critic["loss"].detach(), actor["loss"].detach(), actor["awr_loss"].detach(),
+                                  actor["entropy_loss"].detach(), actor["weights"].max()]))
         self._n_updates += gradient_steps
         self.logger.record("train/n_updates", self._n_updates, exclude="tensorboard")
         self.logger.record("train/log_std", self.actor.log_std().mean().item())
-        for key, values in logs.items():
-            self.logger.record(f"train/{key}", float(np.mean(values)))
+        if logs:
+            for key, value in zip(self._LOG_KEYS, th.stack(logs).double().mean(dim=0).tolist()):
+                self.logger.record(f"train/{key}", value)
 
     def _setup_learn(self, total_timesteps: int, callback: Any = None, reset_num_timesteps: bool = True,
                      tb_log_name: str = "run", progress_bar: bool = False):

@@ -315,3 +315,73 @@ if __name__ == "__main__":  # print the reference table (run with the reference 
     import json
 
     print(json.dumps({n: trace(n) for n in CASES}, indent=1))
+
+
+# ------------------------------------------------------------------------------ fused critics
+def _critics(width: int = 16, n_critics: int = 2):
+    from gymnasium import spaces
+    from stable_baselines3.common.policies import ContinuousCritic
+    from stable_baselines3.common.torch_layers import FlattenExtractor
+
+    from lfd_agents.networks import EnsembleCritic
+
+    obs_space, act_space = spaces.Box(-1, 1, (5,), np.float32), spaces.Box(-1, 1, (3,), np.float32)
+    th.manual_seed(0)
+    sb3 = ContinuousCritic(obs_space, act_space, [width, width], FlattenExtractor(obs_space), 5,
+                           n_critics=n_critics, share_features_extractor=False)
+    th.manual_seed(0)
+    fused = EnsembleCritic(obs_space, act_space, [width, width], FlattenExtractor(obs_space), 5, n_critics=n_critics)
+    return sb3, fused
+
+
+def _batch(seed: int = 0):
+    g = th.Generator().manual_seed(seed)
+    return th.randn(64, 5, generator=g), th.rand(64, 3, generator=g) * 2 - 1, th.randn(64, 1, generator=g)
+
+
+@pytest.mark.parametrize("n_critics", [1, 2, 3])
+def test_ensemble_critic_has_sb3_initial_weights_outputs_and_gradients(n_critics):
+    sb3, fused = _critics(n_critics=n_critics)
+    obs, act, y = _batch()
+    act_a, act_b = act.clone().requires_grad_(True), act.clone().requires_grad_(True)
+    q_sb3, q_fused = sb3(obs, act_a), fused(obs, act_b)
+    assert len(q_fused) == n_critics and q_fused[0].shape == (64, 1)
+    for a, b in zip(q_sb3, q_fused):
+        th.testing.assert_close(a, b, rtol=1e-6, atol=1e-6)
+    th.testing.assert_close(sb3.q1_forward(obs, act), fused.q1_forward(obs, act), rtol=1e-6, atol=1e-6)
+    sum(((q - y) ** 2).mean() for q in q_sb3).backward()
+    sum(((q - y) ** 2).mean() for q in q_fused).backward()
+    th.testing.assert_close(act_a.grad, act_b.grad, rtol=1e-5, atol=1e-7)
+    for j, k in enumerate((0, 2, 4)):  # Linear layers of each SB3 Sequential
+        for i in range(n_critics):
+            lin = getattr(sb3, f"qf{i}")[k]
+            th.testing.assert_close(lin.weight.grad.t(), getattr(fused, f"w{j}").grad[i], rtol=1e-5, atol=1e-7)
+            th.testing.assert_close(lin.bias.grad, getattr(fused, f"b{j}").grad[i, 0], rtol=1e-5, atol=1e-7)
+
+
+def test_sb3_critic_state_and_adam_state_load_into_the_ensemble_and_training_continues_identically():
+    """Files saved when the critics were SB3 ``ContinuousCritic``s: weights (state-dict hook) and
+    Adam moments (``_ensemble_optimizer_state``) are re-laid out, and the next steps agree."""
+    from lfd_agents.dmfd import _ensemble_optimizer_state
+
+    sb3, fused = _critics()
+    opt_sb3 = th.optim.Adam(sb3.parameters(), lr=1e-2)
+
+    def step(critic, opt, seed):
+        obs, act, y = _batch(seed)
+        opt.zero_grad()
+        sum(((q - y) ** 2).mean() for q in critic(obs, act)).backward()
+        opt.step()
+
+    for seed in range(3):  # weights and moments move away from the shared initialisation
+        step(sb3, opt_sb3, seed)
+    fused.load_state_dict(sb3.state_dict())
+    opt_fused = th.optim.Adam(fused.parameters(), lr=1e-2, fused=True)
+    opt_fused.load_state_dict(_ensemble_optimizer_state(opt_sb3.state_dict(), fused, opt_fused.state_dict()))
+    assert opt_fused.param_groups[0]["fused"] is True
+    for seed in range(3, 6):
+        step(sb3, opt_sb3, seed)
+        step(fused, opt_fused, seed)
+    obs, act, _ = _batch(9)
+    for a, b in zip(sb3(obs, act), fused(obs, act)):
+        th.testing.assert_close(a, b, rtol=1e-5, atol=1e-6)
