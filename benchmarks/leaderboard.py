@@ -32,6 +32,10 @@ HEADER = ("| agent | seeds | episodes | 25th pct | mean ± std | median | 75th p
 _ENV_STEPS_COLUMN = HEADER.split("|").index(" env steps ")
 #: agents that are references, not learners (never "baselines" of a comparison)
 REFERENCE_AGENTS = _REFERENCE_AGENTS
+#: what the reported metrics' columns mean (printed under a table that has them)
+METRIC_NOTES = {"fold_quality": "1 = a perfect fold, 0 = the flat start; crumpling the cloth cannot fool it, "
+                                "see the task's documentation",
+                "is_success": "the fraction of episodes that succeed"}
 #: the agent compared against every baseline with the probability of improvement
 IMPROVER = "dmfd"
 
@@ -231,10 +235,9 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
             lines.append(reference_row(agent, ref["source"], numbers, metrics))
         lines.append("")
         if metrics:
-            lines += ["Beside p̂ (the task's published metric): " + "; ".join(
-                f"{REPORTED_METRICS[k]} = `info[\"{k}\"]` at the end of each episode" for k in metrics)
-                + " (1 = perfect, 0 = the start), a measure that crumpling the cloth cannot fool "
-                "(see the task's documentation).", ""]
+            lines += ["Beside p̂ (the task's published metric), per episode at its end: " + "; ".join(
+                f"{REPORTED_METRICS[k]} = `info[\"{k}\"]`" + (f" ({METRIC_NOTES[k]})" if k in METRIC_NOTES else "")
+                for k in metrics) + ".", ""]
         if ref:
             lines += [f"Reference rows: {ref.get('source', 'unknown source')}.", ""]
         notes = sorted({r["cell"].get("tags", {}).get("notes") for runs in agents.values() for r in runs} - {None})
