@@ -7,7 +7,8 @@ of distinct ``cell`` × ``cell`` squares (2 cm by default) of the horizontal pla
 up to ``max_points`` evenly spaced positions for a picture. :func:`plot_coverage` draws the
 positions of several agents side by side (the exploration picture of MoPA-RL: MoPA-SAC's
 end-effector covers much more of the 2D Push workspace than SAC's) and
-:func:`coverage_markdown` gives the leaderboard lines for it.
+:func:`coverage_markdown` gives the leaderboard lines for it (``coverage_markdown(coverage_of(results
+of one env), png, folder_of_the_markdown, env_id)``).
 
 The recorder hooks the *unwrapped* env's ``step`` (an instance attribute), so it also sees the
 steps that a wrapper executes on the base env directly (MoPA's planned paths call
@@ -30,7 +31,8 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-__all__ = ["EndEffectorRecorder", "end_effector_xy", "load_coverage", "plot_coverage", "coverage_markdown"]
+__all__ = ["EndEffectorRecorder", "end_effector_xy", "load_coverage", "coverage_of", "plot_coverage",
+           "coverage_markdown"]
 
 
 def end_effector_xy(base: Any) -> Callable[[], np.ndarray]:
@@ -103,33 +105,44 @@ def load_coverage(out: Path | str, suite: str, env_dir: str) -> dict[str, list[d
     if not root.is_dir():
         return found
     for agent_dir in sorted(p for p in root.iterdir() if p.is_dir()):
-        runs = []
-        for path in sorted(agent_dir.glob("seed*.json"), key=lambda p: int(p.stem[4:]) if p.stem[4:].isdigit() else 0):
+        results = []
+        for path in agent_dir.glob("seed*.json"):
             try:
-                result = json.loads(path.read_text())
+                results.append(json.loads(path.read_text()))
             except (OSError, json.JSONDecodeError):
                 continue
-            if isinstance(result.get("coverage"), dict):
-                runs.append({**result["coverage"], "seed": result.get("cell", {}).get("seed")})
-        if runs:
-            found[agent_dir.name] = runs
+        found.update(coverage_of({agent_dir.name: results}))
     return found
 
 
-def _obstacles(env_dir: str) -> list[tuple[tuple[float, float], tuple[float, float]]]:
-    if env_dir.split("__")[0].startswith("Push2DObstacle"):
+def coverage_of(agent_results: dict[str, list[dict[str, Any]]]) -> dict[str, list[dict[str, Any]]]:
+    """``{agent: [coverage records]}`` from ``{agent: [result dicts]}`` (as the leaderboard groups
+    them; results without ``coverage`` are left out, agents without any are dropped)."""
+    out: dict[str, list[dict[str, Any]]] = {}
+    for agent, runs in agent_results.items():
+        covs = [{**r["coverage"], "seed": r.get("cell", {}).get("seed")} for r in runs
+                if isinstance(r.get("coverage"), dict)]
+        if covs:
+            out[agent] = sorted(covs, key=lambda c: (c["seed"] is None, c["seed"] or 0))
+    return out
+
+
+def _obstacles(env_id: str) -> list[tuple[tuple[float, float], tuple[float, float]]]:
+    if env_id.split(":")[-1].startswith("Push2DObstacle"):
         from lfd_envs.mujoco.push2d import OBSTACLES
 
         return [(tuple(c), tuple(h)) for _, c, h in OBSTACLES]
     return []
 
 
-def plot_coverage(out: Path | str, suite: str, env_dir: str, png: Path | str,
+def plot_coverage(data: dict[str, list[dict[str, Any]]], png: Path | str, env_id: str = "",
                   agents: Sequence[str] | None = None, seed: int | None = None) -> Path | None:
     """Draw the recorded positions of each agent (one panel per agent, colour = time) into ``png``.
 
-    ``seed`` selects one seed's positions (default: the lowest recorded seed); the panel title
-    gives the visited cells of every seed. Returns the path, or None when nothing was recorded.
+    ``data`` is ``{agent: [coverage records]}`` (:func:`load_coverage`, :func:`coverage_of`);
+    ``env_id`` adds the env's obstacles where known (Push2DObstacle). ``seed`` selects one
+    seed's positions (default: the lowest recorded seed); the panel title gives the visited
+    cells of every seed. Returns the path, or None when nothing was recorded.
     """
     import matplotlib
 
@@ -137,14 +150,13 @@ def plot_coverage(out: Path | str, suite: str, env_dir: str, png: Path | str,
     import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 
-    data = load_coverage(out, suite, env_dir)
     names = [a for a in (agents or sorted(data)) if a in data]
     if not names:
         return None
     fig, axes = plt.subplots(1, len(names), figsize=(4.2 * len(names), 4.2), squeeze=False)
     everything = np.concatenate([np.asarray(r["points"], dtype=float).reshape(-1, 2)
                                  for a in names for r in data[a]])
-    boxes = _obstacles(env_dir)
+    boxes = _obstacles(env_id)
     if boxes:  # show the whole obstacle layout, not only where the agents went
         corners = np.array([[c[0] + sx * h[0], c[1] + sy * h[1]] for c, h in boxes for sx in (-1, 1) for sy in (-1, 1)])
         everything = np.concatenate([everything, corners])
@@ -173,17 +185,17 @@ def plot_coverage(out: Path | str, suite: str, env_dir: str, png: Path | str,
     return png
 
 
-def coverage_markdown(out: Path | str, suite: str, env_dir: str, png: Path | str, relative_to: Path | str,
-                      agents: Sequence[str] | None = None) -> str:
+def coverage_markdown(data: dict[str, list[dict[str, Any]]], png: Path | str, relative_to: Path | str,
+                      env_id: str = "", agents: Sequence[str] | None = None) -> str:
     """Markdown for a leaderboard section: the picture of :func:`plot_coverage` (written to
     ``png``, linked relative to the folder ``relative_to``) and a table of visited cells per
-    agent and seed. Empty string when no cell of ``env_dir`` recorded coverage."""
+    agent and seed. ``data``: ``{agent: [coverage records]}``, e.g. ``coverage_of(results of
+    one env)``. Empty string when nothing was recorded."""
     import os
 
-    path = plot_coverage(out, suite, env_dir, png, agents=agents)
+    path = plot_coverage(data, png, env_id, agents=agents)
     if path is None:
         return ""
-    data = load_coverage(out, suite, env_dir)
     rows = ["| agent | steps recorded | visited cells per seed | mean |", "| --- | --- | --- | --- |"]
     for name in [a for a in (agents or sorted(data)) if a in data]:
         runs = data[name]
@@ -204,11 +216,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--agents", nargs="+")
     args = p.parse_args(argv)
     env_dir = args.env.split(":")[-1]
-    path = plot_coverage(args.out, args.suite, env_dir, args.png, agents=args.agents)
+    data = load_coverage(args.out, args.suite, env_dir)
+    path = plot_coverage(data, args.png, env_dir.split("__")[0], agents=args.agents)
     if path is None:
         print(f"error: no result of {args.suite}/{env_dir} under {args.out} recorded coverage", file=sys.stderr)
         return 1
-    for agent, runs in load_coverage(args.out, args.suite, env_dir).items():
+    for agent, runs in data.items():
         print(agent, [r["visited_cells"] for r in runs])
     print(f"wrote {path}")
     return 0

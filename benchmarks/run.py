@@ -122,9 +122,10 @@ def check_suite(suite: dict[str, Any], path: Path | str = "suite") -> None:
         for agent, row in ref["rows"].items():
             if not isinstance(row, dict) or not row:
                 raise bad(f"reference[{env!r}].rows[{agent!r}] must be an object with some of {list(_STATS)}")
-            unknown = sorted(set(row) - set(_STATS))
+            valid = list(_STATS) + list(REPORTED_METRICS)  # p̂ statistics, or the mean of a reported metric
+            unknown = sorted(set(row) - set(valid))
             if unknown:
-                raise bad(f"reference[{env!r}].rows[{agent!r}] has unknown keys {unknown}; valid: {list(_STATS)}")
+                raise bad(f"reference[{env!r}].rows[{agent!r}] has unknown keys {unknown}; valid: {valid}")
             if not all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in row.values()):
                 raise bad(f"reference[{env!r}].rows[{agent!r}] values must be numbers")
 
@@ -284,8 +285,11 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
         if chunk > 0:
             agent.learn(total_timesteps=chunk, **({"reset_num_timesteps": False} if _accepts_reset(agent) and i else {}))
             done_steps += chunk
-        scores = evaluate(agent, eval_env, curve_episodes, seed=10_000 + cell.seed)
-        curve.append({"steps": done_steps, "mean_normalized_performance": float(np.mean(scores))})
+        scores = evaluate_episodes(agent, eval_env, curve_episodes, seed=10_000 + cell.seed)
+        point = {"steps": done_steps, "mean_normalized_performance": float(np.mean(scores["normalized_performance"]))}
+        if "is_success" in scores:
+            point["success_rate"] = float(np.mean(scores["is_success"]))
+        curve.append(point)
     train_time = time.perf_counter() - t0
     t1 = time.perf_counter()
     final = evaluate_episodes(agent, eval_env, cell.eval_episodes, seed=cell.seed)

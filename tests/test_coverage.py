@@ -11,7 +11,7 @@ import pytest
 
 import lfd_envs  # noqa: F401
 from benchmarks import run as bench
-from benchmarks.coverage import EndEffectorRecorder, coverage_markdown, load_coverage, plot_coverage
+from benchmarks.coverage import EndEffectorRecorder, coverage_markdown, coverage_of, load_coverage, plot_coverage
 from lfd_envs.mujoco.ompl_planner import ompl_available
 
 
@@ -85,9 +85,11 @@ def test_plot_and_markdown_from_results(tmp_path):
     _fake_result(tmp_path, "sac", 0, rng.uniform(0.3, 0.4, (50, 2)).round(4).tolist(), 6)
     data = load_coverage(tmp_path, "s", "Push2DObstacle-v0")
     assert [r["visited_cells"] for r in data["mopa_sac"]] == [40, 44] and len(data["sac"]) == 1
-    png = plot_coverage(tmp_path, "s", "Push2DObstacle-v0", tmp_path / "plots" / "c.png", agents=["sac", "mopa_sac"])
+    assert coverage_of({"sac": [json.loads(p.read_text()) for p in (tmp_path / "s").rglob("sac/seed*.json")],
+                        "random": [{"cell": {"seed": 0}}]}) == {"sac": data["sac"]}
+    png = plot_coverage(data, tmp_path / "plots" / "c.png", "Push2DObstacle-v0", agents=["sac", "mopa_sac"])
     assert png is not None and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    md = coverage_markdown(tmp_path, "s", "Push2DObstacle-v0", tmp_path / "plots" / "c.png", tmp_path)
+    md = coverage_markdown(data, tmp_path / "plots" / "c.png", tmp_path, "Push2DObstacle-v0")
     assert "![coverage](plots/c.png)" in md and "| mopa_sac | 50 | 40, 44 | 42 |" in md
-    assert plot_coverage(tmp_path, "s", "SawyerLiftObstacle-v0", tmp_path / "x.png") is None
-    assert coverage_markdown(tmp_path, "other", "Push2DObstacle-v0", tmp_path / "y.png", tmp_path) == ""
+    assert plot_coverage({}, tmp_path / "x.png") is None
+    assert coverage_markdown(load_coverage(tmp_path, "other", "Push2DObstacle-v0"), tmp_path / "y.png", tmp_path) == ""
