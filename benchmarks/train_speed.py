@@ -10,8 +10,8 @@ AWAC, SAC-LfD, BC and plain SB3 SAC as the reference) it measures
   step the env);
 * ``env_steps_per_s`` — the env alone with random actions, measured in the same rounds;
 
-and the ratios ``vs_sac`` (updates/s over SB3 SAC's at the same width) and ``vs_env``
-(learn steps/s over env-only steps/s).  The machine is usually shared, so every quantity is
+and the ratios ``vs_sac`` (updates/s over SB3 SAC's at the same width; ``vs_sac_cpu`` the
+same by CPU time) and ``vs_env`` (learn steps/s over env-only steps/s).  The machine is usually shared, so every quantity is
 measured in interleaved rounds (each agent, then the env, then the next round) and the
 median over rounds is reported; ``updates_per_cpu_s`` divides by the thread's CPU time,
 which other processes disturb less.  The buffer holds random transitions: the cost of an
@@ -130,14 +130,14 @@ def agent_rows(env_id: str = "ClothFold-v0", widths: Sequence[int] = (256, 1024)
                buffer_rows: int = 2_000, seed: int = 0, log: Callable[[str], None] | None = None
                ) -> list[dict[str, Any]]:
     """One row per (width, agent); see the module docstring. Counts are per round at width 256;
-    wider networks run ``(256/width)``-scaled counts (at least 10 updates and 10 steps)."""
+    wider networks run ``(256/width)²``-scaled updates and ``(256/width)``-scaled steps (at least 10)."""
     unknown = [a for a in agents if a not in AGENTS]
     if unknown or rounds < 1 or updates < 1 or learn_steps < 1:
         raise ValueError(f"agents must be among {AGENTS} (got {unknown}); rounds, updates, learn_steps >= 1")
     rows = []
     for width in widths:
         scale = min(1.0, 256 / width)
-        n_upd, n_learn = max(10, int(updates * scale)), max(10, int(learn_steps * scale))
+        n_upd, n_learn = max(10, int(updates * scale ** 2)), max(10, int(learn_steps * scale))
         env = _make_env(env_id)
         env.reset(seed=seed)
         rng = np.random.default_rng(seed)
@@ -166,11 +166,13 @@ def agent_rows(env_id: str = "ClothFold-v0", widths: Sequence[int] = (256, 1024)
                 log(f"width {width}: round {r + 1}/{rounds} done")
         env_rate = statistics.median(w for w, _ in env_rates)
         ref = statistics.median(w for w, _ in upd["sac"]) if "sac" in upd else float("nan")
+        ref_cpu = statistics.median(c for _, c in upd["sac"]) if "sac" in upd else float("nan")
         for a in agents:
             u = statistics.median(w for w, _ in upd[a])
+            u_cpu = statistics.median(c for _, c in upd[a])
             row = {"agent": NAMES[a], "net": f"{width}-{width}", "updates_per_s": round(u, 1),
-                   "updates_per_cpu_s": round(statistics.median(c for _, c in upd[a]), 1),
-                   "vs_sac": round(u / ref, 2)}
+                   "vs_sac": round(u / ref, 2), "updates_per_cpu_s": round(u_cpu, 1),
+                   "vs_sac_cpu": round(u_cpu / ref_cpu, 2)}
             if a in lrn:
                 s = statistics.median(lrn[a])
                 row.update(learn_steps_per_s=round(s, 1), env_steps_per_s=round(env_rate, 1),
