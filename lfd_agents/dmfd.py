@@ -500,12 +500,15 @@ class DMfD(OffPolicyAlgorithm):
     def actor_loss(self, data: ReplayBufferSamples) -> dict[str, th.Tensor]:
         """DMfD actor loss on a batch (see :func:`dmfd_actor_loss`).
 
-        The critic's parameters take no gradient from it (the actor's optimiser ignores them).
+        The critic's parameters take no gradient from it (the actor's optimiser ignores them),
+        and with ``entropy_weight == 0`` (AWAC) the entropy term, whose gradient is then
+        multiplied by 0, is evaluated without a graph.
         """
         mean, std = self.actor.mean_std(data.observations)
-        pi_actions = mean + th.randn_like(mean) * std  # reparameterised a_π ~ π(·|o)
         critic = self.critic
-        with frozen(critic):
+        with frozen(critic), th.set_grad_enabled(th.is_grad_enabled() and self.entropy_weight > 0):
+            pi_actions = mean + th.randn_like(mean) * std  # reparameterised a_π ~ π(·|o)
+            logp_pi = normal_log_prob(pi_actions, mean, std)
             if isinstance(critic, EnsembleCritic):  # encode the observations once for both action sets
                 with th.no_grad():
                     features = critic.features(data.observations)
@@ -516,9 +519,9 @@ class DMfD(OffPolicyAlgorithm):
                     q_buffer = self._min_q(critic, data.observations, data.actions)
                 q_pi = self._min_q(critic, data.observations, pi_actions)
         advantages = q_buffer - q_pi.detach()
-        out = dmfd_actor_loss(normal_log_prob(data.actions, mean, std), advantages,
-                              normal_log_prob(pi_actions, mean, std), q_pi, temperature=self.awr_temperature,
-                              ent_coef=self.ent_coef, entropy_weight=self.entropy_weight)
+        out = dmfd_actor_loss(normal_log_prob(data.actions, mean, std), advantages, logp_pi, q_pi,
+                              temperature=self.awr_temperature, ent_coef=self.ent_coef,
+                              entropy_weight=self.entropy_weight)
         out["advantages"] = advantages
         return out
 
