@@ -130,6 +130,23 @@ def agent_row(agent: str, runs: list[dict[str, Any]], metrics: list[str] = ()) -
     return row, s.as_dict()
 
 
+def demonstrations_line(agents: dict[str, list[dict[str, Any]]]) -> str | None:
+    """A sentence with the mean final p̂ of the demonstrations each agent learnt from (the cells'
+    ``demo_performance``), or None when no cell recorded it (older results, no demonstrations)."""
+    parts = []
+    for agent in sorted(agents):
+        values = [r["demo_performance"] for r in agents[agent] if isinstance(r.get("demo_performance"), float)]
+        if values:
+            demo = agents[agent][0]["cell"].get("agent_kwargs", {})
+            source = demo.get("demo_policy", "expert")
+            if demo.get("demo_policy_kwargs"):
+                source += " " + ", ".join(f"{k}={v}" for k, v in sorted(demo["demo_policy_kwargs"].items()))
+            parts.append(f"{agent}: {float(np.mean(values)):.3f} ({source})")
+    if not parts:
+        return None
+    return "Demonstrations learnt from, mean final p̂ of their episodes: " + "; ".join(parts) + "."
+
+
 def _num(row: dict[str, Any], key: str) -> str:
     v = row.get(key)
     return f"{float(v):.3f}" if isinstance(v, (int, float)) else "—"
@@ -238,6 +255,9 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
             lines += ["Beside p̂ (the task's published metric), per episode at its end: " + "; ".join(
                 f"{REPORTED_METRICS[k]} = `info[\"{k}\"]`" + (f" ({METRIC_NOTES[k]})" if k in METRIC_NOTES else "")
                 for k in metrics) + ".", ""]
+        demos = demonstrations_line(agents)
+        if demos:
+            lines += [demos, ""]
         if ref:
             lines += [f"Reference rows: {ref.get('source', 'unknown source')}.", ""]
         notes = sorted({r["cell"].get("tags", {}).get("notes") for runs in agents.values() for r in runs} - {None})

@@ -148,6 +148,8 @@ def test_demo_cache_under_out_rebuilt_when_broken_and_budgets_recorded(tmp_path,
     cols = [c.strip() for c in next(l for l in lines if l.startswith("| bc |")).split("|")]
     budget = [cols[head.index(k)] for k in ("env steps", "gradient updates", "demo transitions")]
     assert budget == ["0", str(3 * int(np.ceil(n / 4))), str(n)]  # found by name: metric columns may come first
+    assert 0.5 < bc["demo_performance"] <= 1.0  # the expert's demonstrations, mean final p̂
+    assert f"bc: {bc['demo_performance']:.3f} (expert)" in next(l for l in lines if l.startswith("Demonstrations"))
 
     h5[0].write_bytes(h5[0].read_bytes()[:200])  # a kill while Minari wrote the file
     key = h5[0].relative_to(cache).parts[0]
