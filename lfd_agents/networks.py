@@ -280,12 +280,6 @@ class EnsembleCritic(BaseModel):
             self.register_parameter(f"w{j}", nn.Parameter(w.contiguous()))
             self.register_parameter(f"b{j}", nn.Parameter(b.contiguous()))
 
-    def _get_constructor_parameters(self) -> dict[str, Any]:
-        data = super()._get_constructor_parameters()
-        data.update(net_arch=self.net_arch, n_critics=self.n_critics,
-                    share_features_extractor=self.share_features_extractor)
-        return data
-
     def features(self, obs: th.Tensor | dict[str, th.Tensor]) -> th.Tensor:
         """Encoder output for ``obs`` (without gradient when the encoder is the actor's)."""
         with th.set_grad_enabled(th.is_grad_enabled() and not self.share_features_extractor):
