@@ -219,7 +219,7 @@ def _lfd_demo_agent(class_name: str) -> AgentFactory:
 
 
 #: built-in agents that are scripted references, not learners (no device, never "baselines")
-REFERENCE_AGENTS = ("expert", "random", "random_uniform", "zero")
+REFERENCE_AGENTS = ("expert", "random", "random_uniform", "zero", "mail_dataset")
 
 BUILTIN_AGENTS: dict[str, AgentFactory] = {
     "random": random_agent,
@@ -235,6 +235,7 @@ BUILTIN_AGENTS: dict[str, AgentFactory] = {
     "awac": _lfd_demo_agent("AWAC"),
     "mopa_sac": _lfd_agent("MoPASAC", "lfd_agents.mopa"),
     "mail": _lfd_agent("MAILAgent", "lfd_agents.mail"),
+    "mail_dataset": _named_factory("benchmarks.mail_dataset", "mail_dataset"),
     "nist_bc": _named_factory("lfd_agents.nist_bc", "nist_bc"),
     "nist_bc_h6": _named_factory("lfd_agents.nist_bc", "nist_bc_h6"),
     "nist_bc_1cam": _named_factory("lfd_agents.nist_bc", "nist_bc_1cam"),

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from benchmarks import plots
+from benchmarks.coverage import coverage_markdown, coverage_of
 from benchmarks.agents import REFERENCE_AGENTS as _REFERENCE_AGENTS
 from benchmarks.run import REPORTED_METRICS
 from benchmarks.stats import iqm_and_mean, performance_profiles, probability_of_improvement, summarize
@@ -156,7 +157,7 @@ def reference_row(agent: str, source: str, row: dict[str, Any], metrics: list[st
     """A row of numbers reported elsewhere (``source``), labelled e.g. ``*thesis: dmfd*``."""
     prefix = source.split()[0] if source.strip() else "reported"
     mean = _num(row, "mean") + (f" ± {_num(row, 'std')}" if "std" in row else "")
-    extra = " — |" * len(metrics)
+    extra = "".join(f" {_num(row, k)} |" for k in metrics)  # e.g. a reported success rate
     return (f"| *{prefix}: {agent}* | — | — | {_num(row, 'p25')} | {mean} | {_num(row, 'median')} | "
             f"{_num(row, 'p75')} | — |{extra} — | — | — | — |")
 
@@ -278,6 +279,10 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
                 images.append(f"![probability of improvement {env_label}]({os.path.relpath(png, relative_to)})")
             if images:
                 lines += [" ".join(images), ""]
+            cov = coverage_markdown(coverage_of(agents), _png(plot_dir, suite, f"{env_label}_coverage"),
+                                    relative_to, env_id)
+            if cov:
+                lines += [cov, ""]
     if legacy:
         lines += ["\\* requested budget: these results were written before env steps were counted.", ""]
     lines += _aggregate_section(table, suite, plot_dir, relative_to)

@@ -13,7 +13,7 @@ from those episodes (without MAIL's keep-threshold, which only drops bad ones).
 
 Suite cell::
 
-    "agents": {"benchmarks.mail_dataset:mail_dataset": {"teacher_pickers": 2, "population": 32}}
+    "agents": {"mail_dataset": {"teacher_pickers": 2, "population": 32}}
 """
 
 from __future__ import annotations
@@ -157,5 +157,5 @@ class MAILDatasetAgent:
 
 
 def mail_dataset(env: gym.Env, seed: int = 0, **kwargs: Any) -> MAILDatasetAgent:
-    """Harness factory (``"benchmarks.mail_dataset:mail_dataset"``): :class:`MAILDatasetAgent`."""
+    """Harness factory (``"mail_dataset"``): :class:`MAILDatasetAgent`."""
     return MAILDatasetAgent(env, seed=seed, **kwargs)

@@ -284,3 +284,27 @@ def test_preflight_runs_every_pair_tiny_and_names_crashes(tmp_path, capsys):
     assert bench.main(["--suite", str(suite), "--out", str(out), "--no-progress", "--preflight",
                        "--agent", f"{__name__}:broken_factory"]) == 1
     assert "broken_factory" in capsys.readouterr().err
+
+
+def test_leaderboard_shows_reported_success_in_reference_rows_and_the_coverage_picture(tmp_path):
+    from benchmarks.leaderboard import render_markdown
+
+    rng = np.random.default_rng(0)
+
+    def result(agent, seed, success):
+        pts = rng.uniform(-0.4, 0.4, (30, 2)).round(4).tolist()
+        return {"cell": {"suite": "s", "env_id": "Push2DObstacle-v0", "agent": agent, "seed": seed, "tags": {}},
+                "final_normalized_performance": [0.1, 0.2], "final_metrics": {"is_success": [success, 0.0]},
+                "learning_curve": [{"steps": 10, "mean_normalized_performance": 0.1}], "train_wall_time_s": 1.0,
+                "env_steps": 10, "gradient_updates": 5, "demo_transitions": 0,
+                "coverage": {"steps": 30, "cell": 0.02, "visited_cells": 17 + seed, "every": 1, "points": pts}}
+
+    results = [result("mopa_sac", 0, 1.0), result("sac", 0, 0.0)]
+    config = {"reference": {"Push2DObstacle-v0": {"source": "thesis Fig. 3.5", "rows": {
+        "mopa_sac": {"mean": 0.5, "is_success": 0.97}}}}}
+    md = render_markdown(results, command="x", suite="s", plot_dir=tmp_path / "plots", relative_to=tmp_path,
+                         suite_config=config)
+    ref = next(line for line in md.splitlines() if line.startswith("| *thesis: mopa_sac*"))
+    assert " 0.970 |" in ref  # the reported success rate sits in the success column
+    assert "coverage" in md and "| mopa_sac | 30 | 17 | 17 |" in md
+    assert any(p.suffix == ".png" and "coverage" in p.name for p in (tmp_path / "plots").rglob("*"))

@@ -17,7 +17,7 @@ KW = {"num_pickers": 1, "action_mode": "pick_place", "obs_mode": "state"}
 
 def test_converted_teacher_solution_beats_random_on_eval_episodes(tmp_path):
     env = gym.make("ThreeBoxes-v0", **KW)
-    agent = resolve_agent("benchmarks.mail_dataset:mail_dataset")(env, 0, teacher_pickers=3, population=12,
+    agent = resolve_agent("mail_dataset")(env, 0, teacher_pickers=3, population=12,
                                                                    simulator_worlds=12, workdir=tmp_path)
     assert isinstance(agent, MAILDatasetAgent) and agent.needs_training is False
     agent.learn(10)  # nothing to train
