@@ -342,4 +342,40 @@ def write_leaderboard(results_dir: Path, out_path: Path, *, command: str, suite:
     plot_dir = plot_dir or out_path.parent / "docs" / "leaderboard"
     text = render_markdown(results, command=command, suite=suite, plot_dir=plot_dir, relative_to=out_path.parent,
                            suite_config=suite_config, progress=progress)
-    return atomic_write_text(out_path, text)
+    previous = out_path.read_text() if out_path.exists() else ""
+    return atomic_write_text(out_path, merge_suite_section(previous, suite or "all", text))
+
+
+_TITLE = "# Leaderboard"
+_INTRO = ("One section per benchmark suite; each is rewritten by its own run of the harness "
+          "(the command is at the top of the section), the others are kept.")
+
+
+def _block_markers(name: str) -> tuple[str, str]:
+    return f"<!-- leaderboard:suite={name} -->", f"<!-- /leaderboard:suite={name} -->"
+
+
+def _suite_blocks(document: str) -> dict[str, str]:
+    """The suite sections of a leaderboard document, in order (none in an older single-suite file)."""
+    blocks: dict[str, str] = {}
+    for match in re.finditer(r"<!-- leaderboard:suite=(\S+) -->\n(.*?)\n<!-- /leaderboard:suite=\1 -->",
+                             document, flags=re.S):
+        blocks[match.group(1)] = match.group(2)
+    return blocks
+
+
+def merge_suite_section(document: str, suite: str, rendered: str) -> str:
+    """``document`` (a leaderboard file, possibly empty) with the section of ``suite`` replaced by
+    ``rendered`` (a :func:`render_markdown` result, headings moved one level down), other suites'
+    sections kept in their order and a new suite appended."""
+    lines = rendered.splitlines()
+    if lines and lines[0] == _TITLE:
+        lines[0] = f"# Suite `{suite}`"
+    body = "\n".join(("#" + line) if line.startswith("#") else line for line in lines).strip("\n")
+    blocks = _suite_blocks(document)
+    blocks[suite] = body
+    parts = [_TITLE, "", _INTRO, "", "Suites: " + ", ".join(f"`{name}`" for name in blocks) + ".", ""]
+    for name, text in blocks.items():
+        start, end = _block_markers(name)
+        parts += [start, text, end, ""]
+    return "\n".join(parts)

@@ -308,3 +308,17 @@ def test_leaderboard_shows_reported_success_in_reference_rows_and_the_coverage_p
     assert " 0.970 |" in ref  # the reported success rate sits in the success column
     assert "coverage" in md and "| mopa_sac | 30 | 17 | 17 |" in md
     assert any(p.suffix == ".png" and "coverage" in p.name for p in (tmp_path / "plots").rglob("*"))
+
+
+def test_leaderboard_keeps_other_suites_sections():
+    from benchmarks.leaderboard import merge_suite_section
+
+    doc = merge_suite_section("", "a", "# Leaderboard\n\ncommand a\n\n## Env-v0\n\n| row a1 |")
+    doc = merge_suite_section(doc, "b", "# Leaderboard\n\ncommand b\n\n## Env-v0\n\n| row b |")
+    doc = merge_suite_section(doc, "a", "# Leaderboard\n\ncommand a2\n\n## Env-v0\n\n| row a2 |")
+    assert doc.startswith("# Leaderboard\n") and doc.count("# Leaderboard") == 1
+    assert "| row b |" in doc and "| row a2 |" in doc and "row a1" not in doc
+    assert doc.index("## Suite `a`") < doc.index("## Suite `b`")  # order kept, a replaced in place
+    assert "### Env-v0" in doc and "Suites: `a`, `b`." in doc
+    # an older single-suite file is replaced by the sectioned layout
+    assert "old" not in merge_suite_section("# Leaderboard\n\nold\n", "a", "# Leaderboard\n\nnew")
