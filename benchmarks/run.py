@@ -262,6 +262,7 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
     if module:
         importlib.import_module(module)
     factory = resolve_agent(cell.agent)
+    environment = environment_info()  # before training: the commit whose code the cell runs with
     env = StepCounter(gym.make(cell.env_id, **cell.env_kwargs))
     recorder = None
     if cell.tags.get("coverage_steps"):  # end-effector positions of the first training steps
@@ -307,7 +308,7 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
         "trained_steps": done_steps if trains else 0,
         **spent(agent, env),
         **({"coverage": recorder.summary()} if recorder is not None else {}),
-        "environment": environment_info(),
+        "environment": environment,
         "finished_at": time.strftime("%Y-%m-%d %H:%M:%S"),
     }
 
