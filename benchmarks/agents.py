@@ -203,8 +203,11 @@ def _lfd_demo_agent(class_name: str) -> AgentFactory:
                                    policy_kwargs=demo_policy_kwargs)
         kwargs.setdefault("device", "cpu")
         policy = _policy_name(env)
-        if getattr(cls.policy_aliases.get(policy), "__module__", "").startswith("stable_baselines3"):
-            # an SB3 policy (SAC-LfD): give it the project's image encoder, as for plain SAC
+        from stable_baselines3.sac.policies import SACPolicy
+
+        policy_cls = cls.policy_aliases.get(policy)
+        if isinstance(policy_cls, type) and issubclass(policy_cls, SACPolicy):
+            # an SB3 SAC policy (SAC-LfD's): give it the project's image encoder, as for plain SAC
             kwargs["policy_kwargs"] = {**_image_extractor_kwargs(env), **dict(kwargs.get("policy_kwargs") or {})}
         agent = cls(policy, env, demonstrations=str(demos.path), seed=seed, **kwargs)
         agent.demo_transitions = demos.transitions
