@@ -88,3 +88,10 @@ def test_cache_keys_keep_the_experts_and_separate_demonstrators(tmp_path):
     assert demos.episodes == 2 and demos.transitions == 2 * 75
     assert -1.0 < demos.mean_final_performance <= 1.0
     assert (tmp_path / cache_key("StraightenRope-v0", ROPE, 2, 0, "noisy_expert", {"epsilon": 0.3})).is_dir()
+
+
+def test_cli_takes_policy_kwargs(tmp_path, capsys):
+    assert datasets.main(["collect", "--env", "StraightenRope-v0", "--episodes", "1", "--out", str(tmp_path),
+                          "--obs-mode", "state", "--action-mode", "delta", "--policy", "noisy_expert",
+                          "--policy-kwargs", '{"epsilon": 0.1}']) == 0
+    assert "1 episodes" in capsys.readouterr().out
