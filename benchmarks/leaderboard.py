@@ -165,7 +165,10 @@ def reference_row(agent: str, source: str, row: dict[str, Any], metrics: list[st
 def references_for(suite_config: dict[str, Any] | None, env_label: str, env_id: str) -> dict[str, Any] | None:
     """The suite's ``reference`` entry of this env (keyed by the env label or the env id)."""
     refs = (suite_config or {}).get("reference") or {}
-    entry = refs.get(env_label) or refs.get(env_id) or refs.get(env_id.split(":")[-1])
+    entry = refs.get(env_label)
+    if entry is None and not any(key.startswith(f"{env_id} (") for key in refs):
+        # keyed by env id: every label of the env shares it, unless some label has its own entry
+        entry = refs.get(env_id) or refs.get(env_id.split(":")[-1])
     if entry is not None and not isinstance(entry.get("rows"), dict):
         raise ValueError(f"reference for {env_label!r} needs a 'rows' object {{agent: {{mean, std, ...}}}}")
     return entry

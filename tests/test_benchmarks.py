@@ -322,3 +322,13 @@ def test_leaderboard_keeps_other_suites_sections():
     assert "### Env-v0" in doc and "Suites: `a`, `b`." in doc
     # an older single-suite file is replaced by the sectioned layout
     assert "old" not in merge_suite_section("# Leaderboard\n\nold\n", "a", "# Leaderboard\n\nnew")
+
+
+def test_reference_rows_keyed_by_label_are_not_shown_under_other_labels_of_the_env():
+    from benchmarks.leaderboard import references_for
+
+    ref = {"source": "s", "rows": {"bc": {"mean": 0.9}}}
+    config = {"reference": {"E-v0 (state)": ref}}
+    assert references_for(config, "E-v0 (state)", "E-v0") is ref
+    assert references_for(config, "E-v0 (noisy demos, state)", "E-v0") is None
+    assert references_for({"reference": {"E-v0": ref}}, "E-v0 (any)", "E-v0") is ref  # env id: every label
