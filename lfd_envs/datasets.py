@@ -227,7 +227,8 @@ def collect(
             Minari's default datasets folder (:func:`minari_root`).
         env_kwargs: constructor arguments of the env.
         policy: ``"expert"`` (default), ``"noisy_expert"``, ``"random"``, ``"random_pick_place"``
-            or a factory ``env -> policy`` whose policy has ``predict(obs, deterministic=True) -> (action, _)`` and optionally ``reset()``.
+            or a factory ``env -> policy`` whose policy has ``predict(obs, deterministic=True) ->
+            (action, _)`` and optionally ``reset()``.
         seed: episode ``i`` is reset with ``seed + i`` (variants drawn from ``split``).
         name: dataset name (default: the policy name or ``"custom"``).
         min_normalized_performance: keep only episodes whose final p̂ reaches this value
