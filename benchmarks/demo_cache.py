@@ -54,27 +54,27 @@ def _dataset_dir(root: Path) -> Path | None:
 def validate(path: Path, episodes: int) -> Demonstrations:
     """Read the dataset at ``path`` back; raises ``ValueError`` naming ``path`` if it is unusable."""
     from lfd_agents.demos import load_episodes
+    from lfd_envs import datasets
 
     try:
-        eps = load_episodes(str(path))
+        recorded = list(datasets.load(path).iterate_episodes())  # read once: episodes and their p̂
+        eps = load_episodes(recorded)
     except Exception as exc:  # h5py/Minari raise OSError, KeyError, ValueError... on a broken file
         raise ValueError(f"cannot read demonstrations at {path}: {type(exc).__name__}: {exc}") from exc
     if len(eps) != int(episodes):
         raise ValueError(f"demonstrations at {path} hold {len(eps)} episodes, expected {episodes}")
     return Demonstrations(path=Path(path), episodes=len(eps), transitions=int(sum(len(ep) for ep in eps)),
-                          mean_final_performance=_mean_final_performance(path))
+                          mean_final_performance=_mean_final_performance(recorded))
 
 
-def _mean_final_performance(path: Path) -> float:
-    """Mean final p̂ recorded in the dataset's infos (NaN when the dataset has none)."""
+def _mean_final_performance(recorded: list[Any]) -> float:
+    """Mean final p̂ recorded in the episodes' infos (NaN when they have none)."""
     from lfd_envs import datasets
 
-    finals = []
-    for ep in datasets.load(path).iterate_episodes():
-        perf = (ep.infos or {}).get("normalized_performance")
-        if perf is None or len(perf) == 0:
-            return float("nan")
-        finals.append(float(perf[-1]))
+    try:
+        finals = datasets.final_performances(recorded)
+    except (KeyError, IndexError, TypeError):
+        return float("nan")
     return float(sum(finals) / len(finals)) if finals else float("nan")
 
 

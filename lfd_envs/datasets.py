@@ -338,6 +338,12 @@ def load(path: str | os.PathLike) -> Any:
         return minari.load_dataset(ds_id)
 
 
+def final_performances(episodes: Any) -> list[float]:
+    """Final p̂ of each episode recorded by :func:`collect` (Minari ``EpisodeData``, e.g. from
+    ``load(path).iterate_episodes()``); ``KeyError`` if an episode's infos lack it."""
+    return [float(ep.infos["normalized_performance"][-1]) for ep in episodes]
+
+
 def dataset_config(dataset: Any) -> dict[str, Any]:
     """``env_id``, ``env_kwargs``, ``policy``, ``seed``, ``split`` of a dataset from :func:`collect`."""
     return json.loads(dataset.storage.metadata["description"])
@@ -425,13 +431,13 @@ def main(argv: list[str] | None = None) -> int:
         path = collect(args.env, args.episodes, args.out, env_kwargs=kwargs, policy=args.policy,
                        seed=args.seed, split=args.split, name=args.name, policy_kwargs=args.policy_kwargs)
         ds = load(path)
-        finals = [float(ep.infos["normalized_performance"][-1]) for ep in ds.iterate_episodes()]
+        finals = final_performances(ds.iterate_episodes())
         print(f"wrote {path}: {ds.total_episodes} episodes, {ds.total_steps} steps, "
               f"mean final p̂ {np.mean(finals):.3f}")
         _print_minari_hint(path)
     else:
         ds = load(args.path)
-        finals = [float(ep.infos["normalized_performance"][-1]) for ep in ds.iterate_episodes()]
+        finals = final_performances(ds.iterate_episodes())
         print(json.dumps({**dataset_config(ds), "episodes": ds.total_episodes, "steps": ds.total_steps,
                           "mean_final_normalized_performance": float(np.mean(finals))}, indent=2))
     return 0
