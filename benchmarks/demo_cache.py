@@ -9,6 +9,7 @@ a warning that names it.
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -131,9 +132,11 @@ def demonstrations_for(env: gym.Env, episodes: int, cache_dir: str | os.PathLike
         written = datasets.collect(spec.id, int(episodes), tmp, env_kwargs=kwargs, seed=seed + 500_000,
                                    policy=policy, policy_kwargs=policy_kwargs, progress=False)
         rel = Path(written).resolve().relative_to(tmp.resolve())
-        validate(tmp / rel, episodes)
+        checked = validate(tmp / rel, episodes)
         try:
             tmp.rename(root)
+            if (root / rel / "data").is_dir():  # ours, now in place: already checked
+                return dataclasses.replace(checked, path=root / rel)
         except OSError:  # another worker finished the same entry first: use theirs
             if _dataset_dir(root) is None:
                 raise
