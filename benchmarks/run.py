@@ -141,6 +141,7 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
 
     cells: list[Cell] = []
     known_envs = [c["env"] for c in suite["cells"]]
+    suite_agents = {name for c in suite["cells"] for name in c.get("agents", {})}
     if envs:
         bad = [e for e in envs if e not in known_envs]
         if bad:
@@ -160,8 +161,8 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
         cell_agents: dict[str, dict] = dict(spec.get("agents", {}))
         for extra in extra_agents or []:
             cell_agents.setdefault(extra, {})
-        if agents:
-            cell_agents = {a: cell_agents.get(a, {}) for a in agents}
+        if agents:  # names some cell of the suite lists run only where listed; others run everywhere
+            cell_agents = {a: cell_agents.get(a, {}) for a in agents if a in cell_agents or a not in suite_agents}
         for name in cell_agents:
             resolve_agent(name)  # fail early with the list of valid agents
         for agent, kwargs in cell_agents.items():
@@ -358,7 +359,7 @@ def run_grid(cells: list[Cell], out: Path, progress: bool = True, force: bool = 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="python -m benchmarks.run", description=__doc__.split("\n")[0])
     p.add_argument("--suite", required=True, help=f"suite name {available_suites()} or path to a .json file")
-    p.add_argument("--agents", nargs="+", help="only these agents (names or package.module:factory)")
+    p.add_argument("--agents", nargs="+", help="only these agents (names or package.module:factory); a name that some cell lists runs only in the cells that list it")
     p.add_argument("--agent", action="append", default=[], help="add a third-party agent package.module:factory")
     p.add_argument("--envs", nargs="+", help="only these env ids")
     p.add_argument("--seeds", nargs="+", type=int, help="override the suite's seeds")

@@ -332,3 +332,16 @@ def test_reference_rows_keyed_by_label_are_not_shown_under_other_labels_of_the_e
     assert references_for(config, "E-v0 (state)", "E-v0") is ref
     assert references_for(config, "E-v0 (noisy demos, state)", "E-v0") is None
     assert references_for({"reference": {"E-v0": ref}}, "E-v0 (any)", "E-v0") is ref  # env id: every label
+
+
+def test_agents_filter_keeps_each_cell_to_the_agents_it_lists():
+    """``--agents`` never gives a cell an agent that another cell of the suite lists (with that
+    cell's settings) — only names no cell lists (e.g. a third-party factory) go everywhere."""
+    suite = {"name": "filter", "cells": [
+        {"env": "StraightenRope-v0", "label": "a", "agents": {"zero": {}, "bc": {"demo_episodes": 3}}},
+        {"env": "StraightenRope-v0", "label": "b", "agents": {"random": {}}}]}
+    cells = bench.expand_cells(suite, agents=["bc", "random", f"{__name__}:broken_factory"])
+    got = {(c.tags["label"], c.agent) for c in cells}
+    assert got == {("a", "bc"), ("a", f"{__name__}:broken_factory"), ("b", f"{__name__}:broken_factory"),
+                   ("b", "random")}
+    assert next(c for c in cells if c.agent == "bc").agent_kwargs == {"demo_episodes": 3}
