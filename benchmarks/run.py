@@ -179,6 +179,10 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
                     tags={k: spec[k] for k in ("label", "notes", "coverage_steps") if k in spec},
                     cpus=int(spec.get("cpus", suite.get("cpus", 1))),
                 ))
+    if not cells and agents:
+        raise ValueError(f"no cell of suite {suite['name']!r}{' for env(s) ' + str(envs) if envs else ''} lists "
+                         f"agent(s) {agents}; agents listed per env: "
+                         f"{sorted({(c['env'], a) for c in suite['cells'] for a in c.get('agents', {})})}")
     return cells
 
 

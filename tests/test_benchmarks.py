@@ -345,3 +345,7 @@ def test_agents_filter_keeps_each_cell_to_the_agents_it_lists():
     assert got == {("a", "bc"), ("a", f"{__name__}:broken_factory"), ("b", f"{__name__}:broken_factory"),
                    ("b", "random")}
     assert next(c for c in cells if c.agent == "bc").agent_kwargs == {"demo_episodes": 3}
+    two_envs = {"name": "filter2", "cells": [{"env": "StraightenRope-v0", "agents": {"bc": {}}},
+                                             {"env": "ClothFold-v0", "agents": {"random": {}}}]}
+    with pytest.raises(ValueError, match="lists agent"):  # nothing to run: said, not an empty leaderboard
+        bench.expand_cells(two_envs, agents=["bc"], envs=["ClothFold-v0"])
