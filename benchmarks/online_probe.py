@@ -48,17 +48,6 @@ def find_cell(suite: dict[str, Any], env_id: str, agent: str, label: str | None 
     return {"env": env_id, "env_kwargs": dict(c.get("env_kwargs", {})), "agent_kwargs": dict(c["agents"][agent])}
 
 
-def _state(agent: Any) -> dict[str, Any]:
-    return {"policy": agent.policy.state_dict(), "actor_opt": agent.actor.optimizer.state_dict(),
-            "critic_opt": agent.critic.optimizer.state_dict()}
-
-
-def _load_state(agent: Any, state: dict[str, Any]) -> None:
-    agent.policy.load_state_dict(state["policy"])
-    agent.actor.optimizer.load_state_dict(state["actor_opt"])
-    agent.critic.optimizer.load_state_dict(state["critic_opt"])
-
-
 def _batch_stats(agent: Any, buffer: Any, name: str, n: int = 256) -> dict[str, float]:
     import torch as th
 
@@ -122,15 +111,15 @@ def probe_cell(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, age
         agent.learn(total_timesteps=1)  # the offline steps (and one env step)
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp")
-        th.save(_state(agent), tmp)
+        th.save(agent.get_parameters(), tmp)  # policy and optimiser states (SB3)
         tmp.replace(path)
     offline = th.load(path)
     reference = build({})
-    reference.policy.load_state_dict(offline["policy"])
+    reference.set_parameters(offline)
     out: dict[str, list[dict[str, Any]]] = {}
     for name, overrides in variants.items():
         agent = build(overrides)
-        _load_state(agent, offline)
+        agent.set_parameters(offline)
         records, done = [], 0
         while True:
             scores = evaluate(agent, eval_env, eval_episodes, seed=0)
