@@ -108,7 +108,7 @@ def probe_cell(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, age
     if not path.exists():
         agent = factory(env, seed, **base_kwargs)
         agent.set_logger(configure(None, []))
-        agent.learn(total_timesteps=1)  # the offline steps (and one env step)
+        agent.learn(total_timesteps=0)  # the offline steps only
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(".tmp")
         th.save(agent.get_parameters(), tmp)  # policy and optimiser states (SB3)
