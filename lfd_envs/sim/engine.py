@@ -372,16 +372,28 @@ class ParticleSim:
             dev_path = wp.array(path.reshape(-1, 3), dtype=wp.vec3, device=self._device)
 
             def set_path(f: int) -> None:
+                if edited[f] or edited[f + 1]:  # rows changed on the host after the upload
+                    self._write_pickers(self._pick_start, path[f])
+                    self._write_pickers(self._pick_end, path[f + 1])
+                    return
                 wp.copy(self._pick_start, dev_path, src_offset=f * W * P, count=W * P)
                 wp.copy(self._pick_end, dev_path, src_offset=(f + 1) * W * P, count=W * P)
+        ends = targets.copy()  # float64 picker positions at the end of each frame, as in step()
+        edited = np.zeros(F + 1, bool)
         for f in range(F):
             if changes[f] or (level and (flags[f] & ~self._holding).any()):
-                self._picker_pos = targets[f - 1] if f else self._picker_pos
+                self._picker_pos = ends[f - 1] if f else self._picker_pos
                 self._grasp_events(np.array(flags[f], dtype=bool))
                 self._grasped = np.array(flags[f], dtype=bool)
+            if self._holding.any():
+                limited = self._limit_held_descent(ends[f - 1] if f else self._picker_pos, ends[f])
+                if not np.array_equal(limited, ends[f]):
+                    ends[f] = limited
+                    path[f + 1] = limited.reshape(-1, 3)
+                    edited[f + 1] = True
             set_path(f)
             self._run_frame()
-        self._picker_pos = targets[-1].copy()
+        self._picker_pos = ends[-1].copy()
         self._grasped = np.array(flags[-1], dtype=bool)
         self._write_pickers(self.picker_q, self._picker_pos)
 
@@ -390,6 +402,7 @@ class ParticleSim:
         P = self._P
         if P:
             self._grasp_events(g)
+            targets = self._limit_held_descent(self._picker_pos, targets)
             self._write_pickers(self._pick_start, self._picker_pos)
             self._write_pickers(self._pick_end, targets)
         self._run_frame()
@@ -840,6 +853,41 @@ class ParticleSim:
             ratio = 2.0 * p.bend_reference_spacing / np.maximum(rest[:, bend], 1e-12)
             scale[:, bend] = np.minimum(1.0, ratio ** p.bend_spacing_exponent)
         self._write_slice(self._con_kscale, 0, scale.reshape(-1))
+
+    def held_clearance(self) -> np.ndarray:
+        """How far (m) each picker may descend before something it holds touches the ground,
+        ``(W, P)``: the smallest ``z - radius`` over the particles it grasped and over every
+        particle of a rigid box it grasped (``inf`` for a picker that holds nothing; negative when
+        a held object is already below the ground)."""
+        W, N, P = self._W, self._N, self._P
+        out = np.full((W, P), np.inf)
+        if not (P and N and self._holding.any()):
+            return out
+        owner = self._attach.numpy()[: W * N].reshape(W, N).copy()
+        if self._B:
+            box = self._box_of.numpy()[:N]
+            for b in range(self._B):
+                members = box == b
+                held_by = owner[:, members].max(axis=1)  # the highest picker index holding box b (-1: none)
+                owner[:, members] = np.where(held_by[:, None] >= 0, held_by[:, None], owner[:, members])
+        w, i = np.nonzero(owner >= 0)
+        if len(w):
+            z = self.particle_q.numpy()[: W * N].reshape(W, N, 3)[w, i, 2]
+            r = self._radius.numpy()[: W * N].reshape(W, N)[w, i]
+            np.minimum.at(out, (w, owner[w, i]), (z - r).astype(np.float64))
+        return out
+
+    def _limit_held_descent(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+        """Picker targets ``end`` ``(W, P, 3)`` with each holding picker kept above the height at
+        which what it holds would enter the ground (the table stops a picker pressing a held box
+        or cloth particle into it; one already below is lifted out)."""
+        clearance = self.held_clearance()
+        if not np.isfinite(clearance).any():
+            return end
+        floor = np.asarray(start, np.float64)[..., 2] - clearance
+        out = np.array(end, dtype=np.float64)
+        out[..., 2] = np.maximum(out[..., 2], floor)
+        return out.astype(end.dtype, copy=False)
 
     def _update_holding(self) -> None:
         """Recompute which pickers hold at least one particle (``(W, P)``, from the attachments)."""

@@ -103,6 +103,27 @@ def box_contact(x: wp.vec3, xp: wp.vec3, r: float, c: wp.vec3, rot: wp.mat33, he
     return x
 
 
+@wp.func
+def box_exit_above(x: wp.vec3, r: float, c: wp.vec3, rot: wp.mat33, he: wp.vec3, floor: float) -> wp.vec3:
+    """Project point ``x`` (radius ``r``) out of an oriented box through the nearest face whose
+    exit point is at least ``floor`` high (a box sunk into the table must not push a particle
+    out through its bottom, under the table); ``x`` itself if no face qualifies."""
+    rt = wp.transpose(rot)
+    xl = rt * (x - c)
+    e = he + wp.vec3(r, r, r)
+    best = float(1.0e30)
+    out = x
+    for a in range(3):
+        for k in range(2):
+            side = float(2 * k - 1)
+            cand = c + rot * set_axis(xl, a, side * e[a])
+            pen = wp.abs(side * e[a] - xl[a])
+            if cand[2] >= floor and pen < best:
+                best = pen
+                out = cand
+    return out
+
+
 # ----------------------------------------------------------------------------- substep start
 @wp.kernel
 def predict(
@@ -550,7 +571,10 @@ def solve_particles(
                 ks = w * static_boxes.boxes_per_world + s
                 he = static_boxes.half_extents[ks]
                 if he[0] > 0.0:
-                    x = box_contact(x, xp, r, static_boxes.position[ks], static_boxes.rotation[ks], he, 1)
+                    xn = box_contact(x, xp, r, static_boxes.position[ks], static_boxes.rotation[ks], he, 1)
+                    if xn[2] < r:  # pushed out under the table: leave through a face above it
+                        xn = box_exit_above(x, r, static_boxes.position[ks], static_boxes.rotation[ks], he, r)
+                    x = xn
         particles.friction_displacement[i] = particles.friction_displacement[i] + (x - x0)
         particles.positions[i] = x
 
