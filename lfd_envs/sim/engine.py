@@ -175,6 +175,7 @@ class ParticleSim:
         self.picker_q = zeros(W * P, wp.vec3)
         self._pick_start = zeros(W * P, wp.vec3)
         self._pick_end = zeros(W * P, wp.vec3)
+        self._pick_now = zeros(W * P, wp.vec3)  # picker centres at the current substep (colliders)
         self._events = zeros(W * P, wp.int32)
         self._relax_flags = zeros(W, wp.int32)
         self._picker_pos = np.zeros((W, P, 3), np.float64)
@@ -385,8 +386,8 @@ class ParticleSim:
                 self._picker_pos = ends[f - 1] if f else self._picker_pos
                 self._grasp_events(np.array(flags[f], dtype=bool))
                 self._grasped = np.array(flags[f], dtype=bool)
-            if self._holding.any():
-                limited = self._limit_held_descent(ends[f - 1] if f else self._picker_pos, ends[f])
+            if self._holding.any() or self._pickers_press_boxes:
+                limited = self._limit_picker_targets(ends[f - 1] if f else self._picker_pos, ends[f])
                 if not np.array_equal(limited, ends[f]):
                     ends[f] = limited
                     path[f + 1] = limited.reshape(-1, 3)
@@ -402,7 +403,7 @@ class ParticleSim:
         P = self._P
         if P:
             self._grasp_events(g)
-            targets = self._limit_held_descent(self._picker_pos, targets)
+            targets = self._limit_picker_targets(self._picker_pos, targets)
             self._write_pickers(self._pick_start, self._picker_pos)
             self._write_pickers(self._pick_end, targets)
         self._run_frame()
@@ -439,6 +440,8 @@ class ParticleSim:
         """Position-only relaxation of the free particles of ``worlds`` ``(W,)`` bool (see
         ``SimParams.release_relaxation``): constraint and collision projections, no velocity update."""
         flags = worlds.astype(np.int32)
+        if self._P and self._params.picker_collision:
+            wp.copy(self._pick_now, self.picker_q)  # the pickers where they are now
         if self._device.is_cpu:
             self._relax_flags.numpy()[:] = flags
         else:
@@ -500,6 +503,9 @@ class ParticleSim:
         q = self.particle_q
         for s in range(p.substeps):
             alpha = (s + 1) / p.substeps
+            if P and p.picker_collision:
+                wp.launch(K.picker_substep_positions, dim=W * P, device=dev,
+                          inputs=[self._pick_start, self._pick_end, alpha, self._pick_now])
             wp.launch(K.predict, dim=self._dim(W * N), device=dev,
                       inputs=[q, self._q_prev, self.particle_v, self._inv_mass, self._attach,
                               self._attach_off, self._pick_start, self._pick_end, self._fric,
@@ -515,7 +521,7 @@ class ParticleSim:
                               inputs=[q, self._rest, self._inv_mass, self._attach,
                                       self._rigid_start, self._rigid_count, N, B,
                                       p.rigid_weight_kinematic, self._box_quat, self._box_pos,
-                                      self._box_rot, self._box_kin])
+                                      self._box_rot, self._box_kin, self._box_he, self._particle_pass_structs[-1]])
             for _ in range(p.collision_passes if sc_on else 0):
                 self._particle_pass(sc_on)
             wp.launch(K.update_velocity, dim=self._dim(W * N), device=dev,
@@ -571,7 +577,10 @@ class ParticleSim:
         static_boxes.boxes_per_world = self._S
         static_boxes.position, static_boxes.rotation = self._sbox_pos, self._sbox_rot
         static_boxes.half_extents = self._sbox_he
-        return particles, collision, tethers, boxes, static_boxes
+        pickers = K.PickerSpheres()
+        pickers.pickers_per_world, pickers.position = self._P, self._pick_now
+        pickers.radius, pickers.enabled = p.picker_radius, int(p.picker_collision and self._P > 0)
+        return particles, collision, tethers, boxes, static_boxes, pickers
 
     def _particle_pass(self, sc_on: int, skip_kinematic: int = 0) -> None:
         W, N = self._W, self._N
@@ -877,17 +886,57 @@ class ParticleSim:
             np.minimum.at(out, (w, owner[w, i]), (z - r).astype(np.float64))
         return out
 
-    def _limit_held_descent(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
-        """Picker targets ``end`` ``(W, P, 3)`` with each holding picker kept above the height at
-        which what it holds would enter the ground (the table stops a picker pressing a held box
-        or cloth particle into it; one already below is lifted out)."""
-        clearance = self.held_clearance()
-        if not np.isfinite(clearance).any():
-            return end
-        floor = np.asarray(start, np.float64)[..., 2] - clearance
+    @property
+    def _pickers_press_boxes(self) -> bool:
+        return bool(self._params.picker_collision and self._B and self._P)
+
+    def _limit_picker_targets(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+        """Picker targets ``end`` ``(W, P, 3)`` kept where the table stops them: a holding picker
+        stays above the height at which what it holds would enter the table (one already below
+        is lifted out), and a colliding picker does not press a free box into it."""
         out = np.array(end, dtype=np.float64)
-        out[..., 2] = np.maximum(out[..., 2], floor)
+        clearance = self.held_clearance()
+        if np.isfinite(clearance).any():
+            out[..., 2] = np.maximum(out[..., 2], np.asarray(start, np.float64)[..., 2] - clearance)
+        if self._pickers_press_boxes:
+            for _ in range(4):  # a target inside a box is first raised out of it, then onto its face
+                excess = self._box_press_excess(out)
+                out[..., 2] += excess
+                if excess.max() < 1e-6:
+                    break
         return out.astype(end.dtype, copy=False)
+
+    def _box_press_excess(self, pickers: np.ndarray) -> np.ndarray:
+        """How far (m) each colliding picker at ``pickers`` ``(W, P, 3)`` would push a free rigid
+        box below the table: the downward part of the sphere's push on the box (sphere against
+        the box's faces) beyond the box's clearance above the table, ``(W, P)`` (0 if none)."""
+        W, N, P, B = self._W, self._N, self._P, self._B
+        centers, rots = self.rigid_box_poses()
+        he = self._box_he.numpy()[: W * B].reshape(W, B, 3)
+        free = self._box_kin.numpy()[: W * B].reshape(W, B) == 0
+        z = self.particle_q.numpy()[: W * N].reshape(W, N, 3)[..., 2] - self._radius.numpy()[: W * N].reshape(W, N)
+        box = self._box_of.numpy()[:N]
+        radius = self._params.picker_radius
+        excess = np.zeros((W, P))
+        for b in range(B):
+            clearance = z[:, box == b].min(axis=1)  # (W,)
+            local = np.einsum("wpk,wkj->wpj", pickers - centers[:, None, b], rots[:, b])
+            d = local - np.clip(local, -he[:, None, b], he[:, None, b])
+            dist = np.linalg.norm(d, axis=-1)
+            # the push moves the box along -d by (radius - dist); its downward part is
+            # (radius - dist) * (upward component of d / dist). A centre inside the box: the height
+            # (m) that takes it out through the face that looks most upwards, plus the radius
+            above = np.einsum("wkj,wpj->wpk", rots[:, b], d)[..., 2] / np.maximum(dist, 1e-9)
+            up = rots[:, b, 2, :]  # world z of each local axis, (W, 3)
+            axis = np.abs(up).argmax(axis=1)
+            u = np.take_along_axis(up, axis[:, None], 1)[:, 0]  # (W,)
+            face = np.sign(u) * np.take_along_axis(he[:, b], axis[:, None], 1)[:, 0]
+            along = np.take_along_axis(local, axis[:, None, None].repeat(P, 1), 2)[..., 0]  # (W, P)
+            out_of_box = (face[:, None] - along) * np.sign(u)[:, None] / np.abs(u)[:, None] + radius
+            push_down = np.where(dist > 1e-9, (radius - dist) * np.clip(above, 0.0, None), out_of_box)
+            push_down = np.where((dist < radius) & free[:, b, None], push_down, 0.0)
+            excess = np.maximum(excess, np.where(push_down > 0, push_down - clearance[:, None], 0.0))
+        return excess
 
     def _update_holding(self) -> None:
         """Recompute which pickers hold at least one particle (``(W, P)``, from the attachments)."""

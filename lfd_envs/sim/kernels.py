@@ -481,6 +481,64 @@ class StaticBoxes:
     half_extents: wp.array(dtype=wp.vec3)
 
 
+@wp.struct
+class PickerSpheres:
+    """Pickers as sphere colliders (``enabled`` 0: they touch nothing); ``position`` holds every
+    world's pickers at the current substep."""
+
+    pickers_per_world: int
+    position: wp.array(dtype=wp.vec3)
+    radius: float
+    enabled: int
+
+
+@wp.kernel
+def picker_substep_positions(start: wp.array(dtype=wp.vec3), end: wp.array(dtype=wp.vec3), alpha: float,
+                             out: wp.array(dtype=wp.vec3)):
+    """Picker centres at the end of a substep (the same interpolation as :func:`predict`)."""
+    k = wp.tid()
+    out[k] = wp.lerp(start[k], end[k], alpha)
+
+
+@wp.func
+def push_out_of_sphere(x: wp.vec3, r: float, c: wp.vec3, radius: float) -> wp.vec3:
+    """Project point ``x`` (radius ``r``) out of the sphere of ``radius`` around ``c``."""
+    d = x - c
+    dmin = radius + r
+    l2 = wp.dot(d, d)
+    if l2 >= dmin * dmin:
+        return x
+    if l2 < 1.0e-18:
+        return c + wp.vec3(0.0, 0.0, dmin)
+    return c + d * (dmin / wp.sqrt(l2))
+
+
+@wp.func
+def sphere_push_on_box(s: wp.vec3, radius: float, center: wp.vec3, rot: wp.mat33, he: wp.vec3) -> wp.vec3:
+    """Translation that moves an oriented box (``center``, ``rot``, half extents ``he``) out of
+    the sphere of ``radius`` around ``s`` (zero when they do not overlap)."""
+    sl = wp.transpose(rot) * (s - center)
+    closest = wp.vec3(wp.clamp(sl[0], -he[0], he[0]), wp.clamp(sl[1], -he[1], he[1]), wp.clamp(sl[2], -he[2], he[2]))
+    d = sl - closest
+    l = wp.length(d)
+    if l >= radius:
+        return wp.vec3(0.0, 0.0, 0.0)
+    if l > 1.0e-9:
+        return rot * (d * (-(radius - l) / l))
+    # sphere centre inside the box: out along the axis of least penetration
+    pen0 = he[0] - wp.abs(sl[0])
+    pen1 = he[1] - wp.abs(sl[1])
+    pen2 = he[2] - wp.abs(sl[2])
+    move = wp.vec3(0.0, 0.0, 0.0)
+    if pen0 <= pen1 and pen0 <= pen2:
+        move = set_axis(move, 0, -sign_nz(sl[0]) * (pen0 + radius))
+    elif pen1 <= pen2:
+        move = set_axis(move, 1, -sign_nz(sl[1]) * (pen1 + radius))
+    else:
+        move = set_axis(move, 2, -sign_nz(sl[2]) * (pen2 + radius))
+    return rot * move
+
+
 @wp.kernel
 def solve_particles(
     particles: ParticleArrays,
@@ -488,14 +546,15 @@ def solve_particles(
     tethers: Tethers,
     boxes: RigidBoxes,
     static_boxes: StaticBoxes,
+    pickers: PickerSpheres,
     sc_on: int,
     skip_kinematic: int,
     total: int,
     chunk: int,
 ):
     """Per-particle pass (Jacobi: partners are read from ``particles.snapshot``, each particle
-    writes only itself): self-collision pairs, tethers, rigid boxes, ground and static boxes
-    (with continuous collision against the substep start), friction bookkeeping."""
+    writes only itself): self-collision pairs, tethers, rigid boxes, picker spheres, ground and
+    static boxes (with continuous collision against the substep start), friction bookkeeping."""
     tid = wp.tid()
     for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
         wi = particles.inverse_mass[i]
@@ -562,6 +621,9 @@ def solve_particles(
                         x = x + f * (xn - x)
                     else:
                         x = xn
+            if pickers.enabled != 0:
+                for p in range(pickers.pickers_per_world):
+                    x = push_out_of_sphere(x, r, pickers.position[w * pickers.pickers_per_world + p], pickers.radius)
         # ground and static boxes
         if x[2] < r:
             x = wp.vec3(x[0], x[1], r)
@@ -594,11 +656,15 @@ def shape_match(
     box_pos: wp.array(dtype=wp.vec3),
     box_rot: wp.array(dtype=wp.mat33),
     box_kin: wp.array(dtype=wp.int32),
+    box_he: wp.array(dtype=wp.vec3),
+    pickers: PickerSpheres,
 ):
     """Shape matching of one rigid box (one thread per world x box): best rigid transform of the
     rest shape onto the current particles (grasped/pinned particles weigh ``kin_weight``), then
     free particles are moved onto the rigid shape.  Rotation by warm-started iterative extraction
-    (Mueller et al. 2016) so it is smooth and deterministic."""
+    (Mueller et al. 2016) so it is smooth and deterministic.  With colliding pickers, a box that
+    nothing holds is then pushed as a whole out of every picker sphere (sphere against the box's
+    faces, so a picker cannot slip between its surface particles)."""
     kb = wp.tid()
     w = kb // num_boxes
     b = kb - w * num_boxes
@@ -643,6 +709,10 @@ def shape_match(
             break
         qt = wp.normalize(wp.quat_from_axis_angle(om / wl, wl) * qt)
     R = wp.quat_to_matrix(qt)
+    if pickers.enabled != 0 and kin == 0:
+        for p in range(pickers.pickers_per_world):
+            c = c + sphere_push_on_box(pickers.position[w * pickers.pickers_per_world + p], pickers.radius,
+                                       c - R * c0, R, box_he[kb])
     box_quat[kb] = qt
     box_rot[kb] = R
     box_kin[kb] = kin
