@@ -134,6 +134,7 @@ class ParticleSim:
         self._rest = zeros(W * N, wp.vec3)
         self._con_rest = zeros(W * nnz, wp.float32)
         self._con_kscale = wp.full(max(1, W * nnz), 1.0, dtype=wp.float32, device=dev)
+        self._con_lambda = zeros(W * nnz, wp.float32)  # XPBD multipliers (compliant constraint types)
         self._w_eff = zeros(W * N, wp.float32)
         self._tether_anchor = wp.full(max(1, W * N), -1, dtype=wp.int32, device=dev)
         self._tether_len = zeros(W * N, wp.float32)
@@ -191,6 +192,7 @@ class ParticleSim:
         self._update_tethers()
         self._update_stiffness_scale()
         self._particle_pass_structs = self._build_particle_pass_structs()
+        self._compliance = self._build_compliance_structs()
 
     # ================================================================== properties
     @property
@@ -470,6 +472,7 @@ class ParticleSim:
         sc_on = int(p.self_collision and self._has_sc)
         if sc_on:
             self._build_neighbors()
+        self._reset_multipliers()
         for _ in range(p.release_relaxation):
             self._solve_distance_constraints()
             self._particle_pass(sc_on, skip_kinematic=1)
@@ -513,6 +516,7 @@ class ParticleSim:
                               W * N, self._chunk(W * N)])
             if sc_on and s % p.self_collision_interval == 0:
                 self._build_neighbors()
+            self._reset_multipliers()
             for _ in range(p.iterations):
                 self._solve_distance_constraints()
                 self._particle_pass(sc_on)
@@ -549,9 +553,29 @@ class ParticleSim:
             args = [self._con_ij, self._con_rest, self._con_kscale, stiffness[typ], off, cnt, self._nnz, N, self.particle_q,
                     self._w_eff]
             if dev.is_cpu:
-                wp.launch(K.solve_constraints_serial, dim=1, device=dev, inputs=args + [W])
+                wp.launch(K.solve_constraints_serial, dim=1, device=dev, inputs=args + [W, self._compliance[typ]])
             else:
-                wp.launch(K.solve_constraints, dim=W * cnt, device=dev, inputs=args)
+                wp.launch(K.solve_constraints, dim=W * cnt, device=dev, inputs=args + [self._compliance[typ]])
+
+    def _build_compliance_structs(self) -> tuple[Any, ...]:
+        """XPBD settings per constraint type (stretch, shear, bend) from the ``*_compliance``
+        parameters (``None``: the PBD stiffness is used)."""
+        p = self._params
+        out = []
+        for value in (p.stretch_compliance, p.shear_compliance, p.bend_compliance):
+            c = K.Compliance()
+            c.enabled = int(value is not None)
+            c.alpha_tilde = 0.0 if value is None else float(value) / p.substep_dt ** 2
+            c.multipliers = self._con_lambda
+            out.append(c)
+        return tuple(out)
+
+    def _reset_multipliers(self) -> None:
+        """Zero the XPBD multipliers (start of a substep or of a release relaxation)."""
+        if self._nnz and any(c.enabled for c in self._compliance):
+            n = self._W * self._nnz
+            wp.launch(K.zero_floats, dim=self._dim(n), device=self._device,
+                      inputs=[self._con_lambda, n, self._chunk(n)])
 
     def _build_particle_pass_structs(self) -> tuple[Any, ...]:
         """Arguments of :func:`kernels.solve_particles` grouped in its ``wp.struct``s (the arrays
@@ -606,6 +630,7 @@ class ParticleSim:
         self._params = params
         self._graph = None
         self._particle_pass_structs = self._build_particle_pass_structs()
+        self._compliance = self._build_compliance_structs()
         for w, b in enumerate(self._builders):
             self._write_sc_radius(w, b._export())
         self._update_grid_params()

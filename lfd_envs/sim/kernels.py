@@ -336,6 +336,46 @@ def project_distance(xi: wp.vec3, xj: wp.vec3, wi: float, wj: float, k: float, r
     return xi, xj
 
 
+@wp.func
+def project_distance_xpbd(xi: wp.vec3, xj: wp.vec3, wi: float, wj: float, alpha_tilde: float, rest: float,
+                          lam: float):
+    """XPBD distance projection (Macklin et al. 2016) with time-scaled compliance
+    ``alpha_tilde = compliance / h**2``; returns both new positions and the updated multiplier."""
+    wsum = wi + wj
+    if wsum > 0.0:
+        d = xi - xj
+        l = wp.length(d)
+        if l > EPS:
+            dlam = (-(l - rest) - alpha_tilde * lam) / (wsum + alpha_tilde)
+            n = d / l
+            return xi + (wi * dlam) * n, xj - (wj * dlam) * n, lam + dlam
+    return xi, xj, lam
+
+
+@wp.struct
+class Compliance:
+    """XPBD mode of one constraint type: ``enabled`` 0 keeps the PBD stiffness; else every
+    constraint has compliance ``alpha_tilde / kscale`` (per-constraint factor, e.g. the
+    resolution-aware bending) and a Lagrange multiplier in ``multipliers`` (reset each substep)."""
+
+    enabled: int
+    alpha_tilde: float
+    multipliers: wp.array(dtype=float)
+
+
+@wp.func
+def constraint_alpha(compliance: Compliance, kscale: float) -> float:
+    return compliance.alpha_tilde / wp.max(kscale, 1.0e-6)
+
+
+@wp.kernel
+def zero_floats(a: wp.array(dtype=float), total: int, chunk: int):
+    """``a[:total] = 0`` (chunked like the particle kernels)."""
+    tid = wp.tid()
+    for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
+        a[i] = 0.0
+
+
 @wp.kernel
 def solve_constraints(
     con_ij: wp.array(dtype=wp.vec2i),
@@ -348,10 +388,12 @@ def solve_constraints(
     num_particles: int,
     q: wp.array(dtype=wp.vec3),
     w_eff: wp.array(dtype=float),
+    compliance: Compliance,
 ):
-    """PBD projection of the distance constraints of one colour, one constraint per thread
-    (``dim = num_worlds * color_count``; GPU variant).  Constraints of one colour share no
-    particle, so each constraint writes its two particles race-free."""
+    """PBD (or XPBD, see :class:`Compliance`) projection of the distance constraints of one
+    colour, one constraint per thread (``dim = num_worlds * color_count``; GPU variant).
+    Constraints of one colour share no particle, so each constraint writes its two particles
+    race-free."""
     t = wp.tid()
     w = t // color_count
     c = color_offset + (t - w * color_count)
@@ -359,7 +401,13 @@ def solve_constraints(
     ij = con_ij[c]
     i = base + ij[0]
     j = base + ij[1]
-    xi, xj = project_distance(q[i], q[j], w_eff[i], w_eff[j], stiffness * con_kscale[w * num_cons + c], con_rest[w * num_cons + c])
+    k = w * num_cons + c
+    if compliance.enabled != 0:
+        xi, xj, lam = project_distance_xpbd(q[i], q[j], w_eff[i], w_eff[j], constraint_alpha(compliance, con_kscale[k]),
+                                            con_rest[k], compliance.multipliers[k])
+        compliance.multipliers[k] = lam
+    else:
+        xi, xj = project_distance(q[i], q[j], w_eff[i], w_eff[j], stiffness * con_kscale[k], con_rest[k])
     q[i] = xi
     q[j] = xj
 
@@ -377,12 +425,28 @@ def solve_constraints_serial(
     q: wp.array(dtype=wp.vec3),
     w_eff: wp.array(dtype=float),
     num_worlds: int,
+    compliance: Compliance,
 ):
     """Same as :func:`solve_constraints` with one thread looping over all worlds and constraints
     of the colour, in order (CPU variant: CPU launches are serial, and this avoids per-thread
     overhead).  Unrolled by four: the particles of four constraints are loaded before any is
     stored (constraints of one colour share no particle, so this is the same arithmetic with
     more instruction-level parallelism)."""
+    if compliance.enabled != 0:
+        for w in range(num_worlds):
+            base = w * num_particles
+            for c in range(color_offset, color_offset + color_count):
+                ij = con_ij[c]
+                i = base + ij[0]
+                j = base + ij[1]
+                k = w * num_cons + c
+                xi, xj, lam = project_distance_xpbd(q[i], q[j], w_eff[i], w_eff[j],
+                                                    constraint_alpha(compliance, con_kscale[k]), con_rest[k],
+                                                    compliance.multipliers[k])
+                compliance.multipliers[k] = lam
+                q[i] = xi
+                q[j] = xj
+        return
     for w in range(num_worlds):
         base = w * num_particles
         rbase = w * num_cons
