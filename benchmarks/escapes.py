@@ -26,9 +26,7 @@ import numpy as np
 import lfd_envs  # noqa: F401  (registers the env ids)
 
 #: tolerance (m) of the checks. Contact puts particle centres at their radius (5-12.5 mm) above the
-#: table; a rigid box tipping over can end a frame with a corner particle's centre a fraction of a
-#: millimetre below it (shape matching runs after the contacts), which the next frame corrects.
-#: An escape (a box pressed through the table, a particle under it) is centimetres.
+#: table; an escape (a box pressed through the table, a particle under it) is centimetres.
 TOLERANCE = 1e-3
 PARTICLE_TASKS = ("StraightenRope-v0", "ClothFold-v0", "ClothFoldDiagonalPinned-v0", "ClothFoldDiagonalUnpinned-v0",
                   "DryCloth-v0", "ThreeBoxes-v0")

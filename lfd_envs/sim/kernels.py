@@ -773,6 +773,13 @@ def shape_match(
             break
         qt = wp.normalize(wp.quat_from_axis_angle(om / wl, wl) * qt)
     R = wp.quat_to_matrix(qt)
+    if kin == 0:
+        # a free box hitting the table fast (dropped, tumbling) would end the iteration with a
+        # corner below it: lift the whole box so that no particle centre is under the table top
+        lift = float(0.0)
+        for k in range(n):
+            lift = wp.max(lift, -(c + R * (rest[start + k] - c0))[2])
+        c = c + wp.vec3(0.0, 0.0, lift)
     if pickers.enabled != 0 and kin == 0:
         for p in range(pickers.pickers_per_world):
             c = c + sphere_push_on_box(pickers.position[w * pickers.pickers_per_world + p], pickers.radius,
