@@ -381,6 +381,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--preflight", action="store_true",
                    help="only check that every (env, agent) pair runs: tiny budgets, results in a temporary "
                         "folder, no leaderboard (minutes instead of hours)")
+    p.add_argument("--report", action="store_true",
+                   help="train nothing: rewrite the suite's leaderboard section from the cells already finished "
+                        "in --out (the command it shows leaves --report out)")
     p.add_argument("--no-progress", action="store_true")
     return p.parse_args(argv)
 
@@ -418,13 +421,15 @@ def main(argv: list[str] | None = None) -> int:
     if args.preflight:
         return preflight(cells, args)
     code = 0
-    try:
-        run_grid(cells, out, progress=not args.no_progress, force=args.force, executor=args.executor,
-                 jobs=args.jobs, address=args.address)
-    except CellsFailed as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        code = 1
-    command = "python -m benchmarks.run " + " ".join(argv if argv is not None else sys.argv[1:])
+    if not args.report:
+        try:
+            run_grid(cells, out, progress=not args.no_progress, force=args.force, executor=args.executor,
+                     jobs=args.jobs, address=args.address)
+        except CellsFailed as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            code = 1
+    shown = [a for a in (argv if argv is not None else sys.argv[1:]) if a != "--report"]
+    command = "python -m benchmarks.run " + " ".join(shown)
     try:
         path = write_leaderboard(out, Path(args.leaderboard), command=command, suite=suite["name"], suite_config=suite,
                                  plot_dir=Path(args.plot_dir) if args.plot_dir else None,

@@ -349,3 +349,18 @@ def test_agents_filter_keeps_each_cell_to_the_agents_it_lists():
                                              {"env": "ClothFold-v0", "agents": {"random": {}}}]}
     with pytest.raises(ValueError, match="lists agent"):  # nothing to run: said, not an empty leaderboard
         bench.expand_cells(two_envs, agents=["bc"], envs=["ClothFold-v0"])
+
+
+def test_report_rewrites_the_leaderboard_from_finished_cells_and_trains_nothing(tmp_path, monkeypatch, capsys):
+    suite = _suite(tmp_path)
+    out, board = tmp_path / "res", tmp_path / "lb.md"
+    args = ["--suite", str(suite), "--out", str(out), "--leaderboard", str(board), "--no-progress"]
+    assert bench.main(args + ["--report"]) == 1  # nothing finished yet: nothing to report
+    assert "error" in capsys.readouterr().err and not board.exists()
+    assert bench.main(args + ["--agents", "random"]) == 0  # one of the two agents
+    board.write_text("stale")
+    monkeypatch.setattr(bench, "run_cell", lambda *a, **k: pytest.fail("--report trained a cell"))
+    assert bench.main(args + ["--report"]) == 0
+    text = board.read_text()
+    assert "| random |" in text and "third_party_factory" not in text
+    assert "--report" not in text and f"python -m benchmarks.run --suite {suite}" in text
