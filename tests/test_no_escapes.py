@@ -21,7 +21,7 @@ def test_grasped_box_pressed_into_the_table_stays_on_it_and_is_not_launched():
     top = sim.positions[0][box.indices][:, 2].max()
     pos = np.array([0.0, 0.0, top])
     sim.set_picker_positions(pos[None, None])
-    for _ in range(30):  # keep pressing down, 1 cm per frame, 10 cm below the table in the end
+    for _ in range(30):  # keep pressing down, 1 cm per frame: commanded 20 cm below the table in the end
         pos = pos - np.array([0.0, 0.0, 0.01])
         sim.step(pos[None, None], np.ones((1, 1), bool))
         assert sim.attached.max() == 0
