@@ -192,6 +192,7 @@ class ParticleSim:
         self._update_tethers()
         self._update_stiffness_scale()
         self._particle_pass_structs = self._build_particle_pass_structs()
+        self._picker_spheres = self._particle_pass_structs[-1]  # also read by shape matching
         self._compliance = self._build_compliance_structs()
 
     # ================================================================== properties
@@ -405,7 +406,8 @@ class ParticleSim:
         P = self._P
         if P:
             self._grasp_events(g)
-            targets = self._limit_picker_targets(self._picker_pos, targets)
+            if self._holding.any() or self._pickers_press_boxes:
+                targets = self._limit_picker_targets(self._picker_pos, targets)
             self._write_pickers(self._pick_start, self._picker_pos)
             self._write_pickers(self._pick_end, targets)
         self._run_frame()
@@ -525,7 +527,7 @@ class ParticleSim:
                               inputs=[q, self._rest, self._inv_mass, self._attach,
                                       self._rigid_start, self._rigid_count, N, B,
                                       p.rigid_weight_kinematic, self._box_quat, self._box_pos,
-                                      self._box_rot, self._box_kin, self._box_he, self._particle_pass_structs[-1]])
+                                      self._box_rot, self._box_kin, self._box_he, self._picker_spheres])
             for _ in range(p.collision_passes if sc_on else 0):
                 self._particle_pass(sc_on)
             wp.launch(K.update_velocity, dim=self._dim(W * N), device=dev,
@@ -630,6 +632,7 @@ class ParticleSim:
         self._params = params
         self._graph = None
         self._particle_pass_structs = self._build_particle_pass_structs()
+        self._picker_spheres = self._particle_pass_structs[-1]
         self._compliance = self._build_compliance_structs()
         for w, b in enumerate(self._builders):
             self._write_sc_radius(w, b._export())
@@ -906,10 +909,14 @@ class ParticleSim:
                 owner[:, members] = np.where(held_by[:, None] >= 0, held_by[:, None], owner[:, members])
         w, i = np.nonzero(owner >= 0)
         if len(w):
-            z = self.particle_q.numpy()[: W * N].reshape(W, N, 3)[w, i, 2]
-            r = self._radius.numpy()[: W * N].reshape(W, N)[w, i]
-            np.minimum.at(out, (w, owner[w, i]), (z - r).astype(np.float64))
+            np.minimum.at(out, (w, owner[w, i]), self._heights_above_table()[w, i])
         return out
+
+    def _heights_above_table(self) -> np.ndarray:
+        """``z - radius`` of every particle, ``(W, N)`` float64 (0: resting on the table)."""
+        W, N = self._W, self._N
+        z = self.particle_q.numpy()[: W * N].reshape(W, N, 3)[..., 2]
+        return (z - self._radius.numpy()[: W * N].reshape(W, N)).astype(np.float64)
 
     @property
     def _pickers_press_boxes(self) -> bool:
@@ -924,27 +931,35 @@ class ParticleSim:
         if np.isfinite(clearance).any():
             out[..., 2] = np.maximum(out[..., 2], np.asarray(start, np.float64)[..., 2] - clearance)
         if self._pickers_press_boxes:
+            boxes = self._box_contact_state()
             for _ in range(4):  # a target inside a box is first raised out of it, then onto its face
-                excess = self._box_press_excess(out)
+                excess = self._box_press_excess(out, *boxes)
                 out[..., 2] += excess
                 if excess.max() < 1e-6:
                     break
         return out.astype(end.dtype, copy=False)
 
-    def _box_press_excess(self, pickers: np.ndarray) -> np.ndarray:
-        """How far (m) each colliding picker at ``pickers`` ``(W, P, 3)`` would push a free rigid
-        box below the table: the downward part of the sphere's push on the box (sphere against
-        the box's faces) beyond the box's clearance above the table, ``(W, P)`` (0 if none)."""
-        W, N, P, B = self._W, self._N, self._P, self._B
+    def _box_contact_state(self) -> tuple[np.ndarray, ...]:
+        """Rigid box centres, rotations, half extents, free flags ``(W, B)`` and clearances above
+        the table ``(W, B)`` for :meth:`_box_press_excess` (read once per frame)."""
+        W, N, B = self._W, self._N, self._B
         centers, rots = self.rigid_box_poses()
         he = self._box_he.numpy()[: W * B].reshape(W, B, 3)
         free = self._box_kin.numpy()[: W * B].reshape(W, B) == 0
-        z = self.particle_q.numpy()[: W * N].reshape(W, N, 3)[..., 2] - self._radius.numpy()[: W * N].reshape(W, N)
-        box = self._box_of.numpy()[:N]
+        heights, box = self._heights_above_table(), self._box_of.numpy()[:N]
+        clearance = np.stack([heights[:, box == b].min(axis=1) for b in range(B)], axis=1)
+        return centers, rots, he, free, clearance
+
+    def _box_press_excess(self, pickers: np.ndarray, centers: np.ndarray, rots: np.ndarray, he: np.ndarray,
+                          free: np.ndarray, clearances: np.ndarray) -> np.ndarray:
+        """How far (m) each colliding picker at ``pickers`` ``(W, P, 3)`` would push a free rigid
+        box below the table: the downward part of the sphere's push on the box (sphere against
+        the box's faces) beyond the box's clearance above the table, ``(W, P)`` (0 if none)."""
+        W, P, B = self._W, self._P, self._B
         radius = self._params.picker_radius
         excess = np.zeros((W, P))
         for b in range(B):
-            clearance = z[:, box == b].min(axis=1)  # (W,)
+            clearance = clearances[:, b]  # (W,)
             local = np.einsum("wpk,wkj->wpj", pickers - centers[:, None, b], rots[:, b])
             d = local - np.clip(local, -he[:, None, b], he[:, None, b])
             dist = np.linalg.norm(d, axis=-1)
