@@ -11,7 +11,14 @@ AWAC, SAC-LfD, BC and plain SB3 SAC as the reference) it measures
 * ``env_steps_per_s`` — the env alone with random actions, measured in the same rounds;
 
 and the ratios ``vs_sac`` (updates/s over SB3 SAC's at the same width; ``vs_sac_cpu`` the
-same by CPU time) and ``vs_env`` (learn steps/s over env-only steps/s).  The machine is usually shared, so every quantity is
+same by CPU time) and ``vs_env`` (learn steps/s over env-only steps/s).
+
+What bounds an update: ``matmul_ms`` is the time of the matrix products one update runs
+(the ``addmm``/``mm``/``bmm``/``baddbmm`` calls and their shapes are recorded with the torch
+profiler over a few updates, then replayed alone on random tensors of the same shapes, so the
+profiler's own overhead is not counted), ``update_ms`` the whole update, ``matmul_share`` their
+ratio, and ``max_vs_sac`` = SB3 SAC's ``update_ms`` / this agent's ``matmul_ms``: the ``vs_sac``
+an update with no cost at all besides its fp32 matrix products would reach.  The machine is usually shared, so every quantity is
 measured in interleaved rounds (each agent, then the env, then the next round) and the
 median over rounds is reported; ``updates_per_cpu_s`` divides by the thread's CPU time,
 which other processes disturb less.  The buffer holds random transitions: the cost of an
@@ -118,6 +125,39 @@ def _updates(model: Any, agent: str, n: int, batch_size: int) -> Callable[[], in
     return lambda: (model.train(n, batch_size), n)[1]
 
 
+_MATMUL_OPS = ("aten::addmm", "aten::mm", "aten::bmm", "aten::baddbmm")
+
+
+def _replay_ms(op: str, shapes: list[list[int]], repeats: int = 100) -> float:
+    """Milliseconds of one ``op`` call on random tensors of the recorded input ``shapes``."""
+    import torch as th
+
+    fn = {"aten::mm": th.mm, "aten::bmm": th.bmm, "aten::addmm": th.addmm, "aten::baddbmm": th.baddbmm}[op]
+    args = [th.randn(*shape) for shape in shapes[:2 if op in ("aten::mm", "aten::bmm") else 3]]
+    for _ in range(3):
+        fn(*args)
+    t0 = time.perf_counter()
+    for _ in range(repeats):
+        fn(*args)
+    return (time.perf_counter() - t0) / repeats * 1e3
+
+
+def matmul_floor_ms(model: Any, agent: str, batch_size: int, updates: int = 10) -> float | None:
+    """Milliseconds of matrix products per update of ``model`` (recorded, then replayed alone);
+    None for BC (its update runs through ``learn``)."""
+    if agent == "bc":
+        return None
+    from torch.profiler import ProfilerActivity, profile
+
+    with profile(activities=[ProfilerActivity.CPU], record_shapes=True) as prof:
+        model.train(updates, batch_size)
+    total = 0.0
+    for ev in prof.key_averages(group_by_input_shape=True):
+        if ev.key in _MATMUL_OPS:
+            total += _replay_ms(ev.key, ev.input_shapes) * ev.count / updates
+    return total
+
+
 def _env_steps(env: Any, n: int, rng: np.random.Generator) -> None:
     for _ in range(n):
         _, _, term, trunc, _ = env.step(rng.uniform(-1, 1, env.action_space.shape).astype(np.float32))
@@ -148,6 +188,7 @@ def agent_rows(env_id: str = "ClothFold-v0", widths: Sequence[int] = (256, 1024)
             _updates(m, a, 2, batch_size)()
             if a != "bc":
                 m.learn(2, reset_num_timesteps=False)
+        floors = {a: matmul_floor_ms(m, a, batch_size) for a, m in models.items()}
         upd: dict[str, list[tuple[float, float]]] = {a: [] for a in agents}
         lrn: dict[str, list[float]] = {a: [] for a in agents if a != "bc"}
         env_rates: list[tuple[float, float]] = []
@@ -173,6 +214,10 @@ def agent_rows(env_id: str = "ClothFold-v0", widths: Sequence[int] = (256, 1024)
             row = {"agent": NAMES[a], "net": f"{width}-{width}", "updates_per_s": round(u, 1),
                    "vs_sac": round(u / ref, 2), "updates_per_cpu_s": round(u_cpu, 1),
                    "vs_sac_cpu": round(u_cpu / ref_cpu, 2)}
+            floor = floors[a]
+            row.update(update_ms=round(1e3 / u, 2), matmul_ms=None if floor is None else round(floor, 2),
+                       matmul_share=None if floor is None else round(floor * u / 1e3, 2),
+                       max_vs_sac=None if floor is None else round(1e3 / ref / floor, 2))
             if a in lrn:
                 s = statistics.median(lrn[a])
                 row.update(learn_steps_per_s=round(s, 1), env_steps_per_s=round(env_rate, 1),
