@@ -364,3 +364,27 @@ def test_report_rewrites_the_leaderboard_from_finished_cells_and_trains_nothing(
     text = board.read_text()
     assert "| random |" in text and "third_party_factory" not in text
     assert "--report" not in text and f"python -m benchmarks.run --suite {suite}" in text
+
+
+def test_train_speed_matmul_floor_is_part_of_the_update_and_sets_max_vs_sac():
+    """The replayed matrix products of an update take less time than the whole update, and
+    ``max_vs_sac`` is SB3 SAC's update time over the agent's matmul time (same run)."""
+    import torch as th
+
+    from benchmarks.train_speed import agent_rows
+
+    threads = th.get_num_threads()
+    th.set_num_threads(1)
+    try:
+        rows = agent_rows("ClothFold-v0", widths=[64], agents=["dmfd", "bc", "sac"], rounds=1, updates=20,
+                          learn_steps=10, batch_size=64, buffer_rows=500)
+    finally:
+        th.set_num_threads(threads)
+    by = {r["agent"]: r for r in rows}
+    assert by["BC"]["matmul_ms"] is None and by["BC"]["max_vs_sac"] is None
+    for name in ("DMfD", "SB3 SAC"):
+        r = by[name]
+        assert 0 < r["matmul_ms"] < r["update_ms"], r
+        assert 0 < r["matmul_share"] < 1, r
+    expected = by["SB3 SAC"]["update_ms"] / by["DMfD"]["matmul_ms"]
+    assert by["DMfD"]["max_vs_sac"] == pytest.approx(expected, rel=0.05)
