@@ -9,7 +9,8 @@ Usage::
 
 A suite (``benchmarks/configs/<name>.json``) lists cells: an env id with its kwargs, the
 agents to run on it (name -> kwargs), a training budget (env steps), seeds and the number
-of evaluation episodes. Each (env, agent, seed) cell is trained, evaluated on the env's
+of evaluation episodes (acting with ``predict(deterministic=True)``, or sampled actions where a
+cell or the suite sets ``"deterministic": false``). Each (env, agent, seed) cell is trained, evaluated on the env's
 *eval* variants and saved as JSON; cells whose JSON exists and reads back are skipped (resume);
 a corrupt one is reported by path and re-run.
 
@@ -54,6 +55,7 @@ class Cell:
     curve_points: int = 4
     tags: dict[str, Any] = field(default_factory=dict)
     cpus: int = 1  #: CPU cores the cell asks a cluster scheduler for
+    deterministic: bool = True  #: evaluation acts with ``predict(obs, deterministic=...)``
 
     @property
     def key(self) -> str:
@@ -110,6 +112,9 @@ def check_suite(suite: dict[str, Any], path: Path | str = "suite") -> None:
         steps = spec.get("coverage_steps", 1)
         if not isinstance(steps, int) or isinstance(steps, bool) or steps < 1:
             raise bad(f"cells[{i}].coverage_steps must be an integer >= 1, got {steps!r}")
+        deterministic = spec.get("deterministic", suite.get("deterministic", True))
+        if not isinstance(deterministic, bool):
+            raise bad(f"cells[{i}].deterministic must be true or false, got {deterministic!r}")
         cpus = spec.get("cpus", suite.get("cpus", 1))
         if not isinstance(cpus, int) or isinstance(cpus, bool) or cpus < 1:
             raise bad(f"cells[{i}].cpus must be an integer >= 1, got {cpus!r}")
@@ -178,6 +183,7 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
                     curve_points=int(spec.get("curve_points", suite.get("curve_points", 4))),
                     tags={k: spec[k] for k in ("label", "notes", "coverage_steps") if k in spec},
                     cpus=int(spec.get("cpus", suite.get("cpus", 1))),
+                    deterministic=bool(spec.get("deterministic", suite.get("deterministic", True))),
                 ))
     if not cells and agents:
         raise ValueError(f"no cell of suite {suite['name']!r}{' for env(s) ' + str(envs) if envs else ''} lists "
@@ -193,14 +199,30 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
 REPORTED_METRICS: dict[str, str] = {"fold_quality": "fold quality", "is_success": "success"}
 
 
-def evaluate_episodes(agent: Any, env, episodes: int, seed: int) -> dict[str, list[float]]:
+class SampledActions:
+    """``agent`` acting with ``predict(obs, deterministic=False)``: actions drawn from its policy."""
+
+    def __init__(self, agent: Any):
+        self.agent = agent
+
+    def reset(self) -> None:
+        if hasattr(self.agent, "reset"):
+            self.agent.reset()
+
+    def predict(self, obs: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True):
+        return self.agent.predict(obs, state, episode_start, deterministic=False)
+
+
+def evaluate_episodes(agent: Any, env, episodes: int, seed: int, deterministic: bool = True) -> dict[str, list[float]]:
     """Final ``normalized_performance`` p̂(H) of ``agent`` on eval variants ``0..episodes-1``,
     plus every :data:`REPORTED_METRICS` key that the final info of every episode has
-    (``{key: [one value per episode]}``)."""
+    (``{key: [one value per episode]}``). ``deterministic=False`` samples the agent's actions."""
     from lfd_envs.core.rollout import play_episode
 
     if hasattr(agent, "bind"):
         agent.bind(env)
+    if not deterministic:
+        agent = SampledActions(agent)
     n_eval = env.unwrapped.variants.size("eval") if hasattr(env.unwrapped, "variants") else episodes
     out: dict[str, list[float]] = {"normalized_performance": [], **{k: [] for k in REPORTED_METRICS}}
     for k in range(episodes):
@@ -291,14 +313,15 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
         if chunk > 0:
             agent.learn(total_timesteps=chunk, **({"reset_num_timesteps": False} if _accepts_reset(agent) and i else {}))
             done_steps += chunk
-        scores = evaluate_episodes(agent, eval_env, curve_episodes, seed=10_000 + cell.seed)
+        scores = evaluate_episodes(agent, eval_env, curve_episodes, seed=10_000 + cell.seed,
+                                   deterministic=cell.deterministic)
         point = {"steps": done_steps, "mean_normalized_performance": float(np.mean(scores["normalized_performance"]))}
         if "is_success" in scores:
             point["success_rate"] = float(np.mean(scores["is_success"]))
         curve.append(point)
     train_time = time.perf_counter() - t0
     t1 = time.perf_counter()
-    final = evaluate_episodes(agent, eval_env, cell.eval_episodes, seed=cell.seed)
+    final = evaluate_episodes(agent, eval_env, cell.eval_episodes, seed=cell.seed, deterministic=cell.deterministic)
     finals = final.pop("normalized_performance")
     eval_time = time.perf_counter() - t1
     env.close()

@@ -388,3 +388,27 @@ def test_train_speed_matmul_floor_is_part_of_the_update_and_sets_max_vs_sac():
         assert 0 < r["matmul_share"] < 1, r
     expected = by["SB3 SAC"]["update_ms"] / by["DMfD"]["matmul_ms"]
     assert by["DMfD"]["max_vs_sac"] == pytest.approx(expected, rel=0.05)
+
+
+def test_cells_evaluate_with_sampled_actions_where_deterministic_is_false(tmp_path):
+    """``"deterministic": false`` reaches the agent's predict in the evaluation; a non-bool is refused."""
+    import gymnasium as gym
+
+    class Recorder:
+        def __init__(self, env):
+            self.space, self.flags = env.action_space, set()
+
+        def predict(self, obs, state=None, episode_start=None, deterministic=True):
+            self.flags.add(deterministic)
+            return np.zeros(self.space.shape, self.space.dtype), None
+
+    env = gym.make("Push2DObstacle-v0")
+    for deterministic in (True, False):
+        agent = Recorder(env)
+        bench.evaluate_episodes(agent, env, 1, seed=0, deterministic=deterministic)
+        assert agent.flags == {deterministic}
+    suite = {"name": "t", "cells": [{"env": "Push2DObstacle-v0", "deterministic": False, "agents": {"zero": {}}}]}
+    bench.check_suite(suite)
+    assert [c.deterministic for c in bench.expand_cells(suite)] == [False]
+    with pytest.raises(ValueError, match="deterministic must be true or false"):
+        bench.check_suite({"name": "t", "cells": [{"env": "Push2DObstacle-v0", "deterministic": "no"}]})
