@@ -61,6 +61,17 @@ def _env_label(cell: dict[str, Any]) -> str:
     return cell["env_id"] + (f" ({label})" if label else "")
 
 
+def cell_notes(suite_config: dict[str, Any] | None, env_label: str,
+               agents: dict[str, list[dict[str, Any]]]) -> list[str]:
+    """Notes under a table: the suite config's notes of the cell with this env label (notes are
+    documentation, editable without re-running), else the notes the results recorded."""
+    for spec in (suite_config or {}).get("cells", []):
+        label = spec.get("label")
+        if str(spec.get("env")) + (f" ({label})" if label else "") == env_label and "notes" in spec:
+            return [str(spec["notes"])]
+    return sorted({r["cell"].get("tags", {}).get("notes") for runs in agents.values() for r in runs} - {None})
+
+
 def group_by_env(results: list[dict[str, Any]]) -> dict[str, dict[str, list[dict[str, Any]]]]:
     """``{env label: {agent: [results over seeds]}}``."""
     table: dict[str, dict[str, list]] = defaultdict(lambda: defaultdict(list))
@@ -264,7 +275,7 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
             lines += [demos, ""]
         if ref:
             lines += [f"Reference rows: {ref.get('source', 'unknown source')}.", ""]
-        notes = sorted({r["cell"].get("tags", {}).get("notes") for runs in agents.values() for r in runs} - {None})
+        notes = cell_notes(suite_config, env_label, agents)
         lines += [f"Note: {n}" for n in notes] + ([""] if notes else [])
         probs = improvement(agents)
         if probs:

@@ -412,3 +412,15 @@ def test_cells_evaluate_with_sampled_actions_where_deterministic_is_false(tmp_pa
     assert [c.deterministic for c in bench.expand_cells(suite)] == [False]
     with pytest.raises(ValueError, match="deterministic must be true or false"):
         bench.check_suite({"name": "t", "cells": [{"env": "Push2DObstacle-v0", "deterministic": "no"}]})
+
+
+def test_leaderboard_notes_come_from_the_suite_config_when_it_has_them():
+    from benchmarks.leaderboard import cell_notes
+
+    recorded = {"zero": [{"cell": {"env_id": "Push2DObstacle-v0", "tags": {"label": "a", "notes": "old"}}}]}
+    suite = {"cells": [{"env": "Push2DObstacle-v0", "label": "a", "notes": "new"},
+                       {"env": "Push2DObstacle-v0", "label": "b", "notes": "other"}]}
+    assert cell_notes(suite, "Push2DObstacle-v0 (a)", recorded) == ["new"]
+    assert cell_notes({"cells": [{"env": "Push2DObstacle-v0", "label": "a"}]}, "Push2DObstacle-v0 (a)",
+                      recorded) == ["old"]
+    assert cell_notes(None, "Push2DObstacle-v0 (a)", recorded) == ["old"]
