@@ -66,8 +66,8 @@ def cell_notes(suite_config: dict[str, Any] | None, env_label: str,
     """Notes under a table: the suite config's notes of the cell with this env label (notes are
     documentation, editable without re-running), else the notes the results recorded."""
     for spec in (suite_config or {}).get("cells", []):
-        label = spec.get("label")
-        if str(spec.get("env")) + (f" ({label})" if label else "") == env_label and "notes" in spec:
+        cell = {"env_id": str(spec.get("env")), "tags": {"label": spec["label"]} if "label" in spec else {}}
+        if "notes" in spec and _env_label(cell) == env_label:
             return [str(spec["notes"])]
     return sorted({r["cell"].get("tags", {}).get("notes") for runs in agents.values() for r in runs} - {None})
 

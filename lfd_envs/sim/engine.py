@@ -192,7 +192,6 @@ class ParticleSim:
         self._update_tethers()
         self._update_stiffness_scale()
         self._particle_pass_structs = self._build_particle_pass_structs()
-        self._picker_spheres = self._particle_pass_structs[-1]  # also read by shape matching
         self._compliance = self._build_compliance_structs()
 
     # ================================================================== properties
@@ -389,12 +388,11 @@ class ParticleSim:
                 self._picker_pos = ends[f - 1] if f else self._picker_pos
                 self._grasp_events(np.array(flags[f], dtype=bool))
                 self._grasped = np.array(flags[f], dtype=bool)
-            if self._holding.any() or self._pickers_press_boxes:
-                limited = self._limit_picker_targets(ends[f - 1] if f else self._picker_pos, ends[f])
-                if not np.array_equal(limited, ends[f]):
-                    ends[f] = limited
-                    path[f + 1] = limited.reshape(-1, 3)
-                    edited[f + 1] = True
+            limited = self._limit_picker_targets(ends[f - 1] if f else self._picker_pos, ends[f])
+            if not np.array_equal(limited, ends[f]):
+                ends[f] = limited
+                path[f + 1] = limited.reshape(-1, 3)
+                edited[f + 1] = True
             set_path(f)
             self._run_frame()
         self._picker_pos = ends[-1].copy()
@@ -406,8 +404,7 @@ class ParticleSim:
         P = self._P
         if P:
             self._grasp_events(g)
-            if self._holding.any() or self._pickers_press_boxes:
-                targets = self._limit_picker_targets(self._picker_pos, targets)
+            targets = self._limit_picker_targets(self._picker_pos, targets)
             self._write_pickers(self._pick_start, self._picker_pos)
             self._write_pickers(self._pick_end, targets)
         self._run_frame()
@@ -632,7 +629,6 @@ class ParticleSim:
         self._params = params
         self._graph = None
         self._particle_pass_structs = self._build_particle_pass_structs()
-        self._picker_spheres = self._particle_pass_structs[-1]
         self._compliance = self._build_compliance_structs()
         for w, b in enumerate(self._builders):
             self._write_sc_radius(w, b._export())
@@ -919,13 +915,21 @@ class ParticleSim:
         return (z - self._radius.numpy()[: W * N].reshape(W, N)).astype(np.float64)
 
     @property
+    def _picker_spheres(self) -> Any:
+        """The picker sphere struct of the particle passes (also read by shape matching)."""
+        return self._particle_pass_structs[-1]
+
+    @property
     def _pickers_press_boxes(self) -> bool:
         return bool(self._params.picker_collision and self._B and self._P)
 
     def _limit_picker_targets(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
         """Picker targets ``end`` ``(W, P, 3)`` kept where the table stops them: a holding picker
         stays above the height at which what it holds would enter the table (one already below
-        is lifted out), and a colliding picker does not press a free box into it."""
+        is lifted out), and a colliding picker does not press a free box into it. ``end`` itself
+        is returned when nothing is held and pickers do not collide."""
+        if not (self._holding.any() or self._pickers_press_boxes):
+            return end
         out = np.array(end, dtype=np.float64)
         clearance = self.held_clearance()
         if np.isfinite(clearance).any():
