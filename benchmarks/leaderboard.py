@@ -223,7 +223,9 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
     from tqdm import tqdm
 
     commits = sorted({r.get("environment", {}).get("commit", "?") for r in results})
-    hw = results[0].get("environment", {}) if results else {}
+    envs = [r.get("environment", {}) for r in results] or [{}]
+    hardware = ", ".join(sorted({f"{e.get('cpu', '?')} ({e.get('cpu_count', '?')} cores)" for e in envs}))
+    pythons = ", ".join(sorted({str(e.get("python", "?")) for e in envs}))
     lines = [
         "# Leaderboard",
         "",
@@ -231,8 +233,7 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
         "",
         f"```\n{command}\n```",
         "",
-        f"Commit(s): {', '.join(commits)}. Hardware: {hw.get('cpu', '?')} ({hw.get('cpu_count', '?')} cores), "
-        f"Python {hw.get('python', '?')}. Suite: `{suite or 'all'}`.",
+        f"Commit(s): {', '.join(commits)}. Hardware: {hardware}; Python {pythons}. Suite: `{suite or 'all'}`.",
         "",
         "Each cell: final normalised performance p̂(H) over evaluation episodes (eval variants) × seeds — "
         "25th percentile, mean ± std, median, 75th percentile (the thesis table format) and the "

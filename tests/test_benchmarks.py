@@ -300,12 +300,15 @@ def test_leaderboard_shows_reported_success_in_reference_rows_and_the_coverage_p
                 "coverage": {"steps": 30, "cell": 0.02, "visited_cells": 17 + seed, "every": 1, "points": pts}}
 
     results = [result("mopa_sac", 0, 1.0), result("sac", 0, 0.0)]
+    results[0]["environment"] = {"cpu": "CPU A", "cpu_count": 2, "python": "3.11.7"}
+    results[1]["environment"] = {"cpu": "CPU B", "cpu_count": 4, "python": "3.11.7"}
     config = {"reference": {"Push2DObstacle-v0": {"source": "thesis Fig. 3.5", "rows": {
         "mopa_sac": {"mean": 0.5, "is_success": 0.97}}}}}
     md = render_markdown(results, command="x", suite="s", plot_dir=tmp_path / "plots", relative_to=tmp_path,
                          suite_config=config)
     ref = next(line for line in md.splitlines() if line.startswith("| *thesis: mopa_sac*"))
     assert " 0.970 |" in ref  # the reported success rate sits in the success column
+    assert "Hardware: CPU A (2 cores), CPU B (4 cores); Python 3.11.7." in md  # every machine the cells ran on
     assert "coverage" in md and "| mopa_sac | 30 | 17 | 17 |" in md
     assert any(p.suffix == ".png" and "coverage" in p.name for p in (tmp_path / "plots").rglob("*"))
 
