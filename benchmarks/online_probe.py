@@ -9,9 +9,11 @@ start of the online phase closely, for several settings at a time:
 2. for every ``--variant NAME JSON`` (agent keyword overrides; ``base`` = none) the agent is
    rebuilt with those settings, loads the offline state and runs ``--online-steps`` env steps,
    evaluated on ``--eval-episodes`` eval variants every ``--eval-every`` steps;
-3. per evaluation it reports the mean p̂, the mean log-std of the actor, min-Q and the largest
-   advantage weight on a demonstration batch and on an online batch, and at the end how far the
-   actor's mean action moved, per action dimension, on demonstration and on online states.
+3. per evaluation it reports the mean p̂, the fraction of episodes in which a picker held a
+   particle at the end of some step (particle tasks), the mean log-std of the actor, min-Q and
+   the largest advantage weight on a demonstration batch and on an online batch, and at the end
+   how far the actor's mean action moved, per action dimension, on demonstration and on online
+   states.
 
 Command line (one JSON line per evaluation on stdout, a table at the end; ``--out`` writes all)::
 
@@ -29,9 +31,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
-__all__ = ["probe_cell", "find_cell"]
+__all__ = ["probe_cell", "find_cell", "HeldRate"]
 
 DEFAULT_CACHE = Path(__file__).resolve().parent / "results" / "_probe"  #: offline states, reused
 
@@ -62,6 +65,29 @@ def _batch_stats(agent: Any, buffer: Any, name: str, n: int = 256) -> dict[str, 
     return {f"{name}_q": float(q.mean()), f"{name}_max_weight": float(loss["weights"].max())}
 
 
+class HeldRate(gym.Wrapper):
+    """Eval-env wrapper: per episode, whether a picker held a particle at the end of any step
+    (the env's ``held_particles``; pick-and-place steps end with the pickers released)."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        self.episodes: list[bool] = []
+
+    def reset(self, **kwargs: Any) -> Any:
+        self.episodes.append(False)
+        return self.env.reset(**kwargs)
+
+    def step(self, action: Any) -> Any:
+        out = self.env.step(action)
+        self.episodes[-1] |= bool(np.any(self.env.unwrapped.held_particles > 0))
+        return out
+
+    def rate(self) -> dict[str, float]:
+        """``{"held_rate": fraction of the episodes since the last call}``."""
+        episodes, self.episodes = self.episodes, []
+        return {"held_rate": float(np.mean(episodes))} if episodes else {}
+
+
 def _mean_drift(agent: Any, reference: Any, buffer: Any, n: int = 2000) -> list[float] | None:
     """Mean |μ_agent − μ_reference| per action dimension on ``n`` states of ``buffer``."""
     import torch as th
@@ -79,7 +105,6 @@ def probe_cell(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, age
                cache: Path = DEFAULT_CACHE, demo_cache: Path | None = None,
                log: Any = None) -> dict[str, list[dict[str, Any]]]:
     """Run the probe (module docstring); returns ``{variant: [one record per evaluation, then the drift]}``."""
-    import gymnasium as gym
     import torch as th
     from stable_baselines3.common.logger import configure
 
@@ -97,6 +122,8 @@ def probe_cell(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, age
     base_kwargs.setdefault("demo_cache", str(demo_cache or DEFAULT_RESULTS / CACHE_DIRNAME))
     env = gym.make(cell["env"], **cell["env_kwargs"])
     eval_env = gym.make(cell["env"], **cell["env_kwargs"])
+    if hasattr(eval_env.unwrapped, "held_particles"):
+        eval_env = HeldRate(eval_env)
     key = hashlib.sha256(json.dumps([cell, agent_name, seed], sort_keys=True).encode()).hexdigest()[:16]
     path = Path(cache) / f"offline_{key}.pt"
 
@@ -123,7 +150,9 @@ def probe_cell(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, age
         records, done = [], 0
         while True:
             scores = evaluate(agent, eval_env, eval_episodes, seed=0)
+            held = eval_env.rate() if isinstance(eval_env, HeldRate) else {}
             rec = {"variant": name, "online_steps": done, "mean_p": round(float(np.mean(scores)), 4),
+                   **{k: round(v, 4) for k, v in held.items()},
                    "log_std": round(float(agent.actor.log_std().detach().mean()), 4),
                    **{k: round(v, 4) for k, v in {**_batch_stats(agent, agent.demo_buffer, "demo"),
                                                    **_batch_stats(agent, agent.replay_buffer, "online")}.items()}}

@@ -2,6 +2,7 @@
 
 import json
 
+import numpy as np
 import pytest
 
 from benchmarks import online_probe as probe
@@ -25,6 +26,7 @@ def test_variants_share_the_offline_start_and_the_cache_is_reused(tmp_path):
         evals = [r for r in out[name] if "online_steps" in r]
         assert [r["online_steps"] for r in evals] == [0, 3, 6]
         assert len(out[name][-1]["mean_action_drift_online_states"]) == 6  # pick-and-place action size
+    assert all(0.0 <= r["held_rate"] <= 1.0 for r in evals)  # pick-and-place steps end released: 0
     start = [out[n][0] for n in ("base", "ratio")]
     assert start[0]["mean_p"] == start[1]["mean_p"] and start[0]["log_std"] == start[1]["log_std"]
     again = probe.probe_cell(cell, {"base": {}}, **{**kw, "online_steps": 3})
@@ -43,3 +45,25 @@ def test_bad_requests_are_refused(tmp_path, capsys):
     assert probe.main(["--suite", str(path), "--env", "ClothFoldDiagonalPinned-v0", "--variant", "x", "[1]"]) == 2
     assert "must be an object" in capsys.readouterr().err
     assert not list(tmp_path.glob("offline_*"))
+
+
+def test_held_rate_counts_episodes_in_which_a_picker_held_the_cloth():
+    import gymnasium as gym
+
+    env = probe.HeldRate(gym.make("ClothFoldDiagonalUnpinned-v0", resolution=12))
+
+    class Hover:  # flag on, 0.1 m above the cloth: never holds anything
+        def predict(self, obs, deterministic=True):
+            return np.array([0.0, 0.0, 0.3, 1.0], np.float32), None
+
+    from benchmarks.run import evaluate
+
+    evaluate(Hover(), env, 2, seed=0)
+    assert env.rate() == {"held_rate": 0.0} and env.rate() == {}
+    env.reset(seed=0)
+    u = env.unwrapped
+    corner = u.particle_positions[np.argmin(u.particle_positions[:, :2].sum(axis=1))]
+    for _ in range(15):  # onto a corner with the flag on: grasps on contact
+        env.step(np.r_[np.clip((corner - u.picker_positions[0]) / 0.08, -1, 1), 1.0].astype(np.float32))
+    env.reset(seed=1)
+    assert env.rate() == {"held_rate": 0.5}

@@ -229,3 +229,20 @@ def test_render_and_image_observation():
     assert obs.shape == (16, 16, 3) and obs.dtype == np.uint8 and obs.std() > 5
     frame = env.render()
     assert frame.shape == (256, 256, 3) and frame.dtype == np.uint8
+
+
+def test_held_particles_counts_what_a_picker_holds_not_its_flag():
+    env = make("ClothFoldDiagonalUnpinned-v0")
+    env.reset(seed=0)
+    u = env.unwrapped
+    corner = u.particle_positions[np.argmin(u.particle_positions[:, :2].sum(axis=1))]
+    for _ in range(20):  # above the corner, 0.15 m over the cloth, flag on: holds nothing
+        target = corner + [0.0, 0.0, 0.15]
+        env.step(np.r_[np.clip((target - u.picker_positions[0]) / 0.08, -1, 1), 1.0].astype(np.float32))
+    assert u.grasped[0] and u.held_particles.tolist() == [0]
+    for _ in range(10):  # lowered onto the corner with the flag still on: grasps on contact
+        target = corner + [0.0, 0.0, 0.0]
+        env.step(np.r_[np.clip((target - u.picker_positions[0]) / 0.08, -1, 1), 1.0].astype(np.float32))
+    assert u.held_particles[0] >= 1
+    env.step(np.array([0, 0, 0, -1], np.float32))  # flag off: released
+    assert u.held_particles.tolist() == [0]

@@ -206,6 +206,12 @@ class ParticleEnv(_ParticleBatchViews, LfdEnv):
         """Grasp flags ``(P,)``."""
         return self.batch.sim.grasped[0]
 
+    @property
+    def held_particles(self) -> np.ndarray:
+        """Number of particles each picker holds now ``(P,)`` (0 for a flag that is on over nothing)."""
+        attached = self.batch.sim.attached[0]
+        return np.bincount(attached[attached >= 0], minlength=self.num_pickers)[: self.num_pickers]
+
 
 class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.VectorEnv):
     """Batched particle-task env: ``num_envs`` worlds in one engine, SAME_STEP autoreset.
