@@ -58,21 +58,34 @@ DEFAULT_NET_ARCH = (1024, 1024)
 
 
 # ----------------------------------------------------------------------------------- loss terms
-def awr_weights(advantages: th.Tensor, temperature: float) -> th.Tensor:
-    """Batch-normalised exp(A/λ): ``B · softmax(A/λ)`` over the batch (mean weight 1)."""
+AWR_WEIGHTINGS = ("softmax", "binary")
+
+
+def awr_weights(advantages: th.Tensor, temperature: float, weighting: str = "softmax") -> th.Tensor:
+    """Per-sample weights of the advantage-weighted regression term.
+
+    ``"softmax"`` (DMfD, AWAC): batch-normalised exp(A/λ), ``B · softmax(A/λ)`` (mean weight 1).
+    ``"binary"`` (CRR's binary filter): 1 where A > 0, else 0 — stored actions no better than the
+    policy's own are not imitated at all, whatever their share of the batch.
+    """
     if temperature <= 0:
         raise ValueError(f"temperature must be > 0, got {temperature}")
-    return th.softmax(advantages / temperature, dim=0) * advantages.shape[0]
+    if weighting == "softmax":
+        return th.softmax(advantages / temperature, dim=0) * advantages.shape[0]
+    if weighting == "binary":
+        return (advantages > 0).to(advantages.dtype)
+    raise ValueError(f"weighting must be one of {AWR_WEIGHTINGS}, got {weighting!r}")
 
 
 def dmfd_actor_loss(logp_buffer: th.Tensor, advantages: th.Tensor, logp_pi: th.Tensor, q_pi: th.Tensor, *,
-                    temperature: float, ent_coef: float, entropy_weight: float) -> dict[str, th.Tensor]:
+                    temperature: float, ent_coef: float, entropy_weight: float,
+                    weighting: str = "softmax") -> dict[str, th.Tensor]:
     """DMfD actor loss from per-sample terms (all shape (B,)).
 
     Returns a dict with ``loss`` = (1 − w_E)·L_A + w_E·L_E, ``awr_loss`` (L_A), ``entropy_loss``
-    (L_E) and the detached ``weights``.
+    (L_E) and the detached ``weights`` (:func:`awr_weights` with ``weighting``).
     """
-    weights = awr_weights(advantages.detach(), temperature).detach()
+    weights = awr_weights(advantages.detach(), temperature, weighting).detach()
     l_a = -(logp_buffer * weights).mean()
     l_e = (ent_coef * logp_pi - q_pi).mean()
     return {"loss": (1.0 - entropy_weight) * l_a + entropy_weight * l_e, "awr_loss": l_a,
@@ -301,6 +314,10 @@ class DMfD(OffPolicyAlgorithm):
         entropy_weight: w_E, weight of the entropy term L_E (0.1).
         ent_coef: α, entropy coefficient inside L_E (0.5).
         awr_temperature: λ, advantage temperature of L_A (2.0).
+        awr_weighting: how L_A weights the stored actions: ``"softmax"`` (DMfD: batch-normalised
+            exp(A/λ)) or ``"binary"`` (CRR's filter 1[A > 0]: only actions the critic rates above
+            the policy's own are imitated, so neither the agent's own failed attempts nor the bad
+            steps of suboptimal demonstrations are; λ is then unused).
         target_ent_coef: entropy coefficient in the critic target (0.0 as in the original code).
         reward_scale: factor on every reward (demonstrations and online alike) before the critic
             sees it; it sets the size of Q, hence of the advantages against λ and of Q against α.
@@ -330,7 +347,8 @@ class DMfD(OffPolicyAlgorithm):
                  learning_rate: float | Schedule = 3e-4, buffer_size: int = 600_000, learning_starts: int = 0,
                  batch_size: int = 256, tau: float = 0.005, gamma: float = 0.9,
                  train_freq: int | tuple[int, str] = 1, gradient_steps: int = 1, entropy_weight: float = 0.1,
-                 ent_coef: float = 0.5, awr_temperature: float = 2.0, target_ent_coef: float = 0.0,
+                 ent_coef: float = 0.5, awr_temperature: float = 2.0, awr_weighting: str = "softmax",
+                 target_ent_coef: float = 0.0,
                  reward_scale: float = 10.0, rsi_prob: float | str = "auto", imitation_reward_scale: float = 1.0,
                  duplicate_demos: bool | int = False, augment: bool | str = "auto", aug_pad: int = 2,
                  offline_steps: int = 0, demo_ratio: float | None = None, replay_buffer_class: Any = None,
@@ -341,6 +359,8 @@ class DMfD(OffPolicyAlgorithm):
             raise ValueError(f"entropy_weight (w_E) must be in [0, 1], got {entropy_weight}")
         if awr_temperature <= 0:
             raise ValueError(f"awr_temperature (λ) must be > 0, got {awr_temperature}")
+        if awr_weighting not in AWR_WEIGHTINGS:
+            raise ValueError(f"awr_weighting must be one of {AWR_WEIGHTINGS}, got {awr_weighting!r}")
         if ent_coef < 0 or target_ent_coef < 0:
             raise ValueError("ent_coef and target_ent_coef must be >= 0")
         if aug_pad < 0 or offline_steps < 0:
@@ -352,6 +372,7 @@ class DMfD(OffPolicyAlgorithm):
         self.entropy_weight = float(entropy_weight)
         self.ent_coef = float(ent_coef)
         self.awr_temperature = float(awr_temperature)
+        self.awr_weighting = awr_weighting
         self.target_ent_coef = float(target_ent_coef)
         self.reward_scale = float(reward_scale)
         self.imitation_reward_scale = float(imitation_reward_scale)
@@ -521,7 +542,7 @@ class DMfD(OffPolicyAlgorithm):
         advantages = q_buffer - q_pi.detach()
         out = dmfd_actor_loss(normal_log_prob(data.actions, mean, std), advantages, logp_pi, q_pi,
                               temperature=self.awr_temperature, ent_coef=self.ent_coef,
-                              entropy_weight=self.entropy_weight)
+                              entropy_weight=self.entropy_weight, weighting=self.awr_weighting)
         out["advantages"] = advantages
         return out
 

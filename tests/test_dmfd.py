@@ -40,6 +40,18 @@ def test_actor_loss_matches_hand_computed_values():
     assert out["loss"].item() == pytest.approx(0.9 * 1.75 + 0.1 * -2.05)
 
 
+def test_binary_weighting_imitates_only_actions_rated_above_the_policys():
+    adv = th.tensor([-0.5, 0.0, 1e-3, 4.0])
+    assert awr_weights(adv, temperature=2.0, weighting="binary").tolist() == [0.0, 0.0, 1.0, 1.0]
+    out = dmfd_actor_loss(th.tensor([-1.0, -2.0, -3.0, -4.0]), adv, th.zeros(4), th.zeros(4),
+                          temperature=2.0, ent_coef=0.5, entropy_weight=0.0, weighting="binary")
+    assert out["awr_loss"].item() == pytest.approx((3.0 + 4.0) / 4)
+    with pytest.raises(ValueError, match="weighting must be one of"):
+        awr_weights(adv, temperature=2.0, weighting="exp")
+    with pytest.raises(ValueError, match="awr_weighting"):
+        DMfD("MlpPolicy", ToyPickPlaceEnv(), buffer_size=100, policy_kwargs=tiny(), awr_weighting="hard")
+
+
 def test_td_target_hand_computed():
     y = td_target(th.tensor([1.0, 2.0]), th.tensor([0.0, 1.0]), th.tensor([3.0, 4.0]), th.tensor([-1.0, 0.0]),
                   gamma=0.9, target_ent_coef=0.5)
