@@ -75,11 +75,12 @@ def _decode_state(encoded: dict[str, np.ndarray], template: dict[str, np.ndarray
 
 
 # ---------------------------------------------------------------------- policies
-def expert_policy(env: gym.Env) -> Any:
-    """The task's scripted expert (see :mod:`lfd_envs.experts`)."""
+def expert_policy(env: gym.Env, **expert_kwargs: Any) -> Any:
+    """The task's scripted expert (see :mod:`lfd_envs.experts`), built with ``expert_kwargs``
+    (e.g. ``{"direct_approach": True}`` for the particle tasks' experts)."""
     from lfd_envs.experts import make_expert
 
-    return make_expert(env)
+    return make_expert(env, **expert_kwargs)
 
 
 class RandomPolicy:
@@ -103,12 +104,12 @@ def random_pick_place_policy(env: gym.Env) -> Any:
     return factory(env)
 
 
-def noisy_expert_policy(env: gym.Env, seed: int = 0, epsilon: float = 0.2) -> Any:
-    """The scripted expert with random slips of probability ``epsilon`` per step
-    (:mod:`lfd_envs.experts.noisy`): demonstrations of controlled, lower quality."""
+def noisy_expert_policy(env: gym.Env, seed: int = 0, epsilon: float = 0.2, **expert_kwargs: Any) -> Any:
+    """The scripted expert (built with ``expert_kwargs``) with random slips of probability
+    ``epsilon`` per step (:mod:`lfd_envs.experts.noisy`): demonstrations of controlled, lower quality."""
     from lfd_envs.experts.noisy import noisy_expert_policy as factory
 
-    return factory(env, epsilon=epsilon, seed=seed)
+    return factory(env, epsilon=epsilon, seed=seed, **expert_kwargs)
 
 
 POLICIES = {"expert": expert_policy, "random": RandomPolicy, "random_pick_place": random_pick_place_policy,

@@ -73,6 +73,10 @@ def test_collect_records_policy_kwargs_and_rejects_unknown_ones(tmp_path):
     with pytest.raises(ValueError, match="does not take"):
         datasets.collect("StraightenRope-v0", 1, tmp_path / "b", env_kwargs=ROPE, policy="noisy_expert",
                          policy_kwargs={"sigma": 0.3}, progress=False)
+    # the expert's own options pass through both named expert policies
+    path = datasets.collect("StraightenRope-v0", 1, tmp_path / "c", env_kwargs=ROPE, policy="expert",
+                            policy_kwargs={"direct_approach": True}, progress=False)
+    assert datasets.dataset_config(datasets.load(path))["policy_kwargs"] == {"direct_approach": True}
 
 
 def test_cache_keys_keep_the_experts_and_separate_demonstrators(tmp_path):

@@ -65,3 +65,24 @@ def test_expert_actions_valid_for_any_picker_count(env_id, action_mode):
 def test_make_expert_rejects_other_envs():
     with pytest.raises(ValueError, match="no scripted expert"):
         make_expert(gym.make("CartPole-v1"))
+
+
+@pytest.mark.parametrize("direct", [False, True])
+def test_direct_approach_spreads_the_descent_and_folds_as_well(direct):
+    env = gym.make("ClothFoldDiagonalUnpinned-v0", obs_mode="state", action_mode="delta", resolution=20)
+    expert = make_expert(env, direct_approach=direct)
+    obs, _ = env.reset(seed=0, options={"variant": 0, "split": "eval"})
+    expert.reset()
+    dz = []
+    while True:  # until the first grasp command
+        action, _ = expert.predict(obs)
+        if action[3] > 0:
+            break
+        dz.append(float(action[2]))
+        obs, *_ = env.step(action)
+    steepest = min(dz)
+    if direct:  # the drop to the pick height is shared out over the approach
+        assert steepest > -0.4 and sum(d < -0.05 for d in dz) >= 3, dz
+    else:  # sideways at hover height, then one vertical drop
+        assert steepest < -0.5 and sum(d < -0.05 for d in dz) == 1, dz
+    assert _episode(env, expert, 0) > 0.9

@@ -66,8 +66,9 @@ class EpsilonNoisyPolicy:
         return np.asarray(action, dtype=self.action_space.dtype), state
 
 
-def noisy_expert_policy(env: gym.Env, epsilon: float = 0.2, seed: int = 0) -> EpsilonNoisyPolicy:
-    """The task's scripted expert with random slips (see :class:`EpsilonNoisyPolicy`)."""
+def noisy_expert_policy(env: gym.Env, epsilon: float = 0.2, seed: int = 0, **expert_kwargs: Any) -> EpsilonNoisyPolicy:
+    """The task's scripted expert (``make_expert(env, **expert_kwargs)``) with random slips
+    (see :class:`EpsilonNoisyPolicy`)."""
     from lfd_envs.experts import make_expert
 
-    return EpsilonNoisyPolicy(make_expert(env), env.action_space, epsilon, seed)
+    return EpsilonNoisyPolicy(make_expert(env, **expert_kwargs), env.action_space, epsilon, seed)

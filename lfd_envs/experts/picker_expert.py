@@ -63,13 +63,20 @@ class PickerExpert:
         hold_speed: Fraction of the maximum delta speed used while holding (delta mode).
         tolerance: Distance (m) at which a delta-mode waypoint counts as reached.
         max_phase_steps: Steps after which a delta-mode phase is abandoned (never stalls).
+        direct_approach: delta mode: approach the pick point on a straight line from wherever
+            the picker is, instead of first moving above it at the hover height and then
+            descending vertically in a separate phase. The descent is then spread over the
+            approach steps, an action field without the jump from "move sideways" to "drop"
+            above the pick point, which regression-based learners smear over neighbouring
+            states (pickers pass through the cloth only where they do not collide with it).
     """
 
     #: delta mode: keep re-aiming the place point at the live target while carrying (else the
     #: move is fixed once the picker leaves the approach phase)
     track_place: bool = False
 
-    def __init__(self, env: Any, hold_speed: float = 0.6, tolerance: float = 1e-3, max_phase_steps: int = 80) -> None:
+    def __init__(self, env: Any, hold_speed: float = 0.6, tolerance: float = 1e-3, max_phase_steps: int = 80,
+                 direct_approach: bool = False) -> None:
         base = env.unwrapped
         if not hasattr(base, "batch") or not hasattr(base, "task"):
             raise TypeError(f"{type(self).__name__} needs a particle-task env, got {type(base).__name__}")
@@ -84,6 +91,7 @@ class PickerExpert:
         self.hold_speed = float(hold_speed)
         self.tolerance = float(tolerance)
         self.max_phase_steps = int(max_phase_steps)
+        self.direct_approach = bool(direct_approach)
         self._episodes = EpisodeTracker(env)
         self.reset()
 
@@ -158,7 +166,8 @@ class PickerExpert:
         top = ws.hi[2] - ws.margin
         pick, place = ws.clip(move.pick), ws.clip(move.place)
         wpt = s.waypoints(pick, place, top)
-        target = {"approach": wpt["above_pick"], "descend": pick, "lift": wpt["lifted"],
+        approach = pick if self.direct_approach else wpt["above_pick"]
+        target = {"approach": approach, "descend": pick, "lift": wpt["lifted"],
                   "lower": place, "retreat": wpt["retreat"], "carry_end": wpt["above_place"]}.get(name, cur)
         if name == "carry":
             arc = s.arc_height(wpt["lifted"], wpt["above_place"])
