@@ -68,7 +68,7 @@ class PickerExpert:
             descending vertically in a separate phase. The descent is then spread over the
             approach steps, an action field without the jump from "move sideways" to "drop"
             above the pick point, which regression-based learners smear over neighbouring
-            states (pickers pass through the cloth only where they do not collide with it).
+            states. With picker collisions on, the low end of that line may brush the cloth.
     """
 
     #: delta mode: keep re-aiming the place point at the live target while carrying (else the
