@@ -13,6 +13,7 @@ from lfd_envs.tasks.cloth_fold import fold_distances, group_b
 from lfd_envs.tasks.cloth_fold_diagonal import diagonal_edge_distance
 from lfd_envs.tasks.picker_actions import DeltaActions, PickPlaceActions, PickPlaceSchedule, Workspace
 from lfd_envs.tasks.rope import rope_keypoint_indices
+from picker_moves import steer_picker
 
 RES = {"StraightenRope-v0": 15, "ClothFold-v0": 12, "ClothFoldDiagonal-v0": 12,
        "ClothFoldDiagonalPinned-v0": 12, "ClothFoldDiagonalUnpinned-v0": 12}
@@ -236,13 +237,9 @@ def test_held_particles_counts_what_a_picker_holds_not_its_flag():
     env.reset(seed=0)
     u = env.unwrapped
     corner = u.particle_positions[np.argmin(u.particle_positions[:, :2].sum(axis=1))]
-    for _ in range(20):  # above the corner, 0.15 m over the cloth, flag on: holds nothing
-        target = corner + [0.0, 0.0, 0.15]
-        env.step(np.r_[np.clip((target - u.picker_positions[0]) / 0.08, -1, 1), 1.0].astype(np.float32))
+    steer_picker(env, corner + [0.0, 0.0, 0.15], 20)  # above the corner, flag on: holds nothing
     assert u.grasped[0] and u.held_particles.tolist() == [0]
-    for _ in range(10):  # lowered onto the corner with the flag still on: grasps on contact
-        target = corner + [0.0, 0.0, 0.0]
-        env.step(np.r_[np.clip((target - u.picker_positions[0]) / 0.08, -1, 1), 1.0].astype(np.float32))
+    steer_picker(env, corner, 10)  # lowered onto the corner with the flag still on: grasps on contact
     assert u.held_particles[0] >= 1
     env.step(np.array([0, 0, 0, -1], np.float32))  # flag off: released
     assert u.held_particles.tolist() == [0]
