@@ -7,13 +7,17 @@
   improvement. Score matrices follow rliable's convention: shape ``(runs, tasks)``.
 
 Bootstraps use a fixed seed, so a leaderboard regenerated from the same results is identical.
+rliable's stratified bootstrap draws its resampling indices from NumPy's global generator (the
+``random_state`` it passes on is not used for them), so every bootstrap here runs inside
+:func:`seeded_global_rng`, which seeds that generator and restores the caller's state afterwards.
 """
 
 from __future__ import annotations
 
 import warnings
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
-from typing import Callable, Mapping
+from typing import Callable, Iterator, Mapping
 
 import numpy as np
 
@@ -22,6 +26,17 @@ REPS = 2000
 #: replications of the probability of improvement (a Mann-Whitney statistic per replication: slower)
 POI_REPS = 1000
 SEED = 0
+
+
+@contextmanager
+def seeded_global_rng(seed: int = SEED) -> Iterator[None]:
+    """Seed NumPy's global generator for the block and restore its previous state afterwards."""
+    state = np.random.get_state()
+    np.random.seed(seed)
+    try:
+        yield
+    finally:
+        np.random.set_state(state)
 
 
 def _rliable():
@@ -50,7 +65,8 @@ def interval_estimates(score_dict: Mapping[str, np.ndarray], func: Callable[[np.
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)  # arch's RandomState deprecation notice
         warnings.simplefilter("ignore", RuntimeWarning)  # degenerate (constant) bootstrap samples
-        return rly.get_interval_estimates(scores, func, reps=REPS, random_state=np.random.RandomState(SEED))
+        with seeded_global_rng():
+            return rly.get_interval_estimates(scores, func, reps=REPS, random_state=np.random.RandomState(SEED))
 
 
 def iqm_and_mean(score_dict: Mapping[str, np.ndarray]) -> dict[str, dict[str, float]]:
@@ -69,8 +85,10 @@ def probability_of_improvement(x: np.ndarray, y: np.ndarray) -> tuple[float, flo
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
         warnings.simplefilter("ignore", RuntimeWarning)
-        point, ci = rly.get_interval_estimates({"pair": [_scores(x), _scores(y)]}, metrics.probability_of_improvement,
-                                               reps=POI_REPS, random_state=np.random.RandomState(SEED))
+        with seeded_global_rng():
+            point, ci = rly.get_interval_estimates({"pair": [_scores(x), _scores(y)]},
+                                                   metrics.probability_of_improvement, reps=POI_REPS,
+                                                   random_state=np.random.RandomState(SEED))
     return float(np.ravel(point["pair"])[0]), float(np.ravel(ci["pair"])[0]), float(np.ravel(ci["pair"])[-1])
 
 
@@ -82,8 +100,8 @@ def performance_profiles(score_dict: Mapping[str, np.ndarray], taus: np.ndarray
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FutureWarning)
         warnings.simplefilter("ignore", RuntimeWarning)
-        np.random.seed(SEED)  # create_performance_profile takes no random_state
-        return rly.create_performance_profile(scores, taus, reps=REPS)
+        with seeded_global_rng():  # create_performance_profile takes no random_state
+            return rly.create_performance_profile(scores, taus, reps=REPS)
 
 
 @dataclass

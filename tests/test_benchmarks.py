@@ -50,6 +50,21 @@ def test_stats_match_numpy_and_rliable():
     assert p == 1.0 and lo == hi == 1.0
 
 
+def test_stats_bootstraps_are_reproducible_and_leave_the_global_rng_alone():
+    """Two computations from the same scores give the same intervals (rliable draws its resampling
+    indices from NumPy's global generator), and the caller's global random stream is untouched."""
+    rng = np.random.default_rng(0)
+    x, y = rng.random(60), rng.random(60)
+    np.random.seed(123)
+    expected_next = np.random.RandomState(123).random_sample()
+    first = (iqm_and_mean({"x": x}), probability_of_improvement(x, y))
+    np.random.random_sample()  # the global stream moves on between the two computations
+    assert (iqm_and_mean({"x": x}), probability_of_improvement(x, y)) == first
+    np.random.seed(123)
+    iqm_and_mean({"x": x})
+    assert np.random.random_sample() == expected_next
+
+
 def _suite(tmp_path):
     suite = {
         "name": "tiny",
