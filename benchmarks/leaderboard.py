@@ -213,6 +213,17 @@ def seed_matrix(table: dict[str, dict[str, list[dict[str, Any]]]]) -> dict[str, 
     return out
 
 
+def main_cells(table: dict[str, dict[str, list[dict[str, Any]]]]) -> dict[str, dict[str, list[dict[str, Any]]]]:
+    """For every env id, its cell with the most agents (the first such in label order): the
+    cells the aggregate compares agents on, leaving out ablation cells that run a few agents."""
+    best: dict[str, str] = {}
+    for label in sorted(table):
+        env_id = next(r["cell"]["env_id"] for runs in table[label].values() for r in runs)
+        if env_id not in best or len(table[label]) > len(table[best[env_id]]):
+            best[env_id] = label
+    return {label: table[label] for label in sorted(best.values())}
+
+
 def _png(plot_dir: Path, suite: str | None, what: str) -> Path:
     return plot_dir / (f"{suite or 'all'}_" + re.sub(r"[^A-Za-z0-9_.-]+", "_", what) + ".png")
 
@@ -306,14 +317,18 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
 
 def _aggregate_section(table: dict[str, dict[str, list[dict[str, Any]]]], suite: str | None,
                        plot_dir: Path | None, relative_to: Path) -> list[str]:
-    if len(table) < 2:
+    cells = main_cells(table)
+    if len(cells) < 2:
         return []
-    scores = seed_matrix(table)
+    scores = seed_matrix(cells)
     if not scores:
         return []
     est = iqm_and_mean(scores)
+    left_out = len(table) - len(cells)
+    scope = (f"; per env, its cell with the most agents ({left_out} cell{'s' if left_out != 1 else ''} with fewer "
+             "left out)" if left_out else "")
     lines = ["## Across environments", "",
-             f"Agents run on all {len(table)} environments; runs = seeds (per-seed mean p̂ on each env), "
+             f"Agents run on all {len(cells)} environments{scope}; runs = seeds (per-seed mean p̂ on each env), "
              "stratified-bootstrap 95% CIs (rliable).", "",
              "| agent | runs × envs | IQM [95% CI] | mean [95% CI] |", "|---|---|---|---|"]
     for agent, e in sorted(est.items(), key=lambda kv: -kv[1]["iqm"]):

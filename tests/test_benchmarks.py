@@ -442,3 +442,25 @@ def test_leaderboard_notes_come_from_the_suite_config_when_it_has_them():
     assert cell_notes({"cells": [{"env": "Push2DObstacle-v0", "label": "a"}]}, "Push2DObstacle-v0 (a)",
                       recorded) == ["old"]
     assert cell_notes(None, "Push2DObstacle-v0 (a)", recorded) == ["old"]
+
+
+def test_aggregate_compares_agents_on_each_envs_main_cell():
+    """Ablation cells that run a few agents do not shrink the across-environment comparison to the
+    agents they share: per env id, the cell with the most agents is aggregated."""
+    from benchmarks.leaderboard import group_by_env, main_cells, render_markdown, seed_matrix
+
+    def result(env, label, agent, seed, score):
+        return {"cell": {"suite": "s", "env_id": env, "agent": agent, "seed": seed, "tags": {"label": label}},
+                "final_normalized_performance": [score, score], "learning_curve": [], "train_wall_time_s": 1.0,
+                "env_steps": 10, "gradient_updates": 5, "demo_transitions": 0}
+
+    results = [result(env, "main", agent, seed, 0.1 * seed + (0.5 if agent == "dmfd" else 0.2))
+               for env in ("A-v0", "B-v0") for agent in ("bc", "dmfd") for seed in range(3)]
+    results += [result("A-v0", "ablation", "dmfd", seed, 0.9) for seed in range(3)]
+    table = group_by_env(results)
+    assert sorted(main_cells(table)) == ["A-v0 (main)", "B-v0 (main)"]
+    scores = seed_matrix(main_cells(table))
+    assert sorted(scores) == ["bc", "dmfd"] and scores["dmfd"].shape == (3, 2)
+    md = render_markdown(results, command="x", suite="s", plot_dir=None, relative_to=Path("."))
+    assert "Agents run on all 2 environments; per env, its cell with the most agents (1 cell with fewer left out)" in md
+    assert "| bc | 3 × 2 |" in md and "| dmfd | 3 × 2 |" in md
