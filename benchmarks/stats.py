@@ -39,6 +39,16 @@ def seeded_global_rng(seed: int = SEED) -> Iterator[None]:
         np.random.set_state(state)
 
 
+@contextmanager
+def _bootstrap() -> Iterator[None]:
+    """The setting of every rliable bootstrap here: global generator seeded (and restored),
+    arch's ``RandomState`` deprecation notice and degenerate-sample warnings silenced."""
+    with warnings.catch_warnings(), seeded_global_rng():
+        warnings.simplefilter("ignore", FutureWarning)  # arch's RandomState deprecation notice
+        warnings.simplefilter("ignore", RuntimeWarning)  # degenerate (constant) bootstrap samples
+        yield
+
+
 def _rliable():
     from rliable import library as rly
     from rliable import metrics
@@ -62,11 +72,8 @@ def interval_estimates(score_dict: Mapping[str, np.ndarray], func: Callable[[np.
     """rliable point estimates and stratified-bootstrap 95% CIs of ``func`` for each entry."""
     rly, _ = _rliable()
     scores = {k: _scores(v) for k, v in score_dict.items()}
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FutureWarning)  # arch's RandomState deprecation notice
-        warnings.simplefilter("ignore", RuntimeWarning)  # degenerate (constant) bootstrap samples
-        with seeded_global_rng():
-            return rly.get_interval_estimates(scores, func, reps=REPS, random_state=np.random.RandomState(SEED))
+    with _bootstrap():
+        return rly.get_interval_estimates(scores, func, reps=REPS, random_state=np.random.RandomState(SEED))
 
 
 def iqm_and_mean(score_dict: Mapping[str, np.ndarray]) -> dict[str, dict[str, float]]:
@@ -82,13 +89,9 @@ def iqm_and_mean(score_dict: Mapping[str, np.ndarray]) -> dict[str, dict[str, fl
 def probability_of_improvement(x: np.ndarray, y: np.ndarray) -> tuple[float, float, float]:
     """P(X > Y) of rliable (Mann-Whitney statistic averaged over tasks) with its 95% CI."""
     rly, metrics = _rliable()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FutureWarning)
-        warnings.simplefilter("ignore", RuntimeWarning)
-        with seeded_global_rng():
-            point, ci = rly.get_interval_estimates({"pair": [_scores(x), _scores(y)]},
-                                                   metrics.probability_of_improvement, reps=POI_REPS,
-                                                   random_state=np.random.RandomState(SEED))
+    with _bootstrap():
+        point, ci = rly.get_interval_estimates({"pair": [_scores(x), _scores(y)]}, metrics.probability_of_improvement,
+                                               reps=POI_REPS, random_state=np.random.RandomState(SEED))
     return float(np.ravel(point["pair"])[0]), float(np.ravel(ci["pair"])[0]), float(np.ravel(ci["pair"])[-1])
 
 
@@ -97,11 +100,8 @@ def performance_profiles(score_dict: Mapping[str, np.ndarray], taus: np.ndarray
     """Fraction of runs with score > τ for each τ, with stratified-bootstrap CIs (rliable)."""
     rly, _ = _rliable()
     scores = {k: _scores(v) for k, v in score_dict.items()}
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FutureWarning)
-        warnings.simplefilter("ignore", RuntimeWarning)
-        with seeded_global_rng():  # create_performance_profile takes no random_state
-            return rly.create_performance_profile(scores, taus, reps=REPS)
+    with _bootstrap():  # create_performance_profile takes no random_state
+        return rly.create_performance_profile(scores, taus, reps=REPS)
 
 
 @dataclass
