@@ -61,6 +61,7 @@ class PickerExpert:
     Args:
         env: A particle env (wrappers allowed).
         hold_speed: Fraction of the maximum delta speed used while holding (delta mode).
+        free_speed: Fraction of the maximum delta speed used while not holding (delta mode).
         tolerance: Distance (m) at which a delta-mode waypoint counts as reached.
         max_phase_steps: Steps after which a delta-mode phase is abandoned (never stalls).
         direct_approach: delta mode: approach the pick point on a straight line from wherever
@@ -76,7 +77,7 @@ class PickerExpert:
     track_place: bool = False
 
     def __init__(self, env: Any, hold_speed: float = 0.6, tolerance: float = 1e-3, max_phase_steps: int = 80,
-                 direct_approach: bool = False) -> None:
+                 direct_approach: bool = False, free_speed: float = 1.0) -> None:
         base = env.unwrapped
         if not hasattr(base, "batch") or not hasattr(base, "task"):
             raise TypeError(f"{type(self).__name__} needs a particle-task env, got {type(base).__name__}")
@@ -89,6 +90,7 @@ class PickerExpert:
         self.schedule = self.task.pick_place_schedule()
         self.actions = base.batch.action_mode
         self.hold_speed = float(hold_speed)
+        self.free_speed = float(free_speed)
         self.tolerance = float(tolerance)
         self.max_phase_steps = int(max_phase_steps)
         self.direct_approach = bool(direct_approach)
@@ -220,7 +222,7 @@ class PickerExpert:
         else:  # pragma: no cover - defensive
             return action.ravel()
         reach = self.actions.step_size * self.actions.action_repeat
-        speed = self.hold_speed if name in HOLDING else 1.0
+        speed = self.hold_speed if name in HOLDING else self.free_speed
         delta = (target - cur) / reach
         scale = max(1.0, np.abs(delta).max() / speed)
         action[:, :3] = delta / scale
