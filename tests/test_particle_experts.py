@@ -86,3 +86,21 @@ def test_direct_approach_spreads_the_descent_and_folds_as_well(direct):
     else:  # sideways at hover height, then one vertical drop
         assert steepest < -0.5 and sum(d < -0.05 for d in dz) == 1, dz
     assert _episode(env, expert, 0) > 0.9
+
+
+def test_speed_caps_every_phase_and_the_rope_still_straightens():
+    env = gym.make("StraightenRope-v0", obs_mode="state", action_mode="delta", resolution=21)
+    expert = make_expert(env, hold_speed=0.25, free_speed=0.25)
+    obs, _ = env.reset(seed=0, options={"variant": 0, "split": "eval"})
+    expert.reset()
+    motions, done, holding_steps = [], False, 0
+    while not done:
+        action, _ = expert.predict(obs)
+        motions.append(np.abs(action.reshape(-1, 4)[:, :3]).max())
+        holding_steps += bool(action[3] > 0)
+        obs, _, term, trunc, info = env.step(action)
+        done = term or trunc
+    assert max(motions) <= 0.25 + 1e-6, max(motions)  # no phase moves faster than asked
+    assert sum(m > 0.2 for m in motions) >= 6, motions  # the descent and carry span several steps
+    assert holding_steps >= 5
+    assert info["normalized_performance"] > 0.9
