@@ -104,3 +104,10 @@ def test_speed_caps_every_phase_and_the_rope_still_straightens():
     assert sum(m > 0.2 for m in motions) >= 6, motions  # the descent and carry span several steps
     assert holding_steps >= 5
     assert info["normalized_performance"] > 0.9
+
+
+@pytest.mark.parametrize("kwargs", [{"free_speed": 0.0}, {"hold_speed": -0.5}, {"free_speed": 1.5}])
+def test_speed_outside_its_range_is_a_clear_error(kwargs):
+    env = gym.make("StraightenRope-v0", obs_mode="state", action_mode="delta", resolution=21)
+    with pytest.raises(ValueError, match="maximum delta speed"):
+        make_expert(env, **kwargs)

@@ -78,6 +78,9 @@ class PickerExpert:
 
     def __init__(self, env: Any, hold_speed: float = 0.6, tolerance: float = 1e-3, max_phase_steps: int = 80,
                  direct_approach: bool = False, free_speed: float = 1.0) -> None:
+        for name, speed in (("hold_speed", hold_speed), ("free_speed", free_speed)):
+            if not 0.0 < float(speed) <= 1.0:
+                raise ValueError(f"{name} must be in (0, 1] (a fraction of the maximum delta speed), got {speed!r}")
         base = env.unwrapped
         if not hasattr(base, "batch") or not hasattr(base, "task"):
             raise TypeError(f"{type(self).__name__} needs a particle-task env, got {type(base).__name__}")
