@@ -15,6 +15,7 @@ name                        file                    measured by
 ==========================  ======================  ==================================================
 ``expert-table``            docs/particle_tasks.md  :mod:`benchmarks.experts` (every row)
 ``speed-table``             docs/particle_tasks.md  :func:`benchmarks.speed.particle_env_rows`
+``pick-place-speed-table``  docs/particle_tasks.md  :func:`benchmarks.speed.pick_place_speed_rows`
 ``readme-expert-table``     README.md               :mod:`benchmarks.experts` (default set-ups), the
                                                     MuJoCo experts (success rates)
 ``readme-speed-table``      README.md               :mod:`benchmarks.speed` (engine, envs, renderer,
@@ -23,7 +24,7 @@ name                        file                    measured by
 ``mail-transfer-table``     docs/mail.md            :mod:`benchmarks.mail_bench` (table 2)
 ==========================  ======================  ==================================================
 
-Groups: ``particles`` (the two particle-task tables), ``readme``, ``mail``, ``experts``, ``speed``.
+Groups: ``particles`` (the three particle-task tables), ``readme``, ``mail``, ``experts``, ``speed``.
 ``--variants N`` (expert tables, default 100) and ``--episodes N`` (MuJoCo experts, default 50)
 trade precision for time; ``--quick`` runs everything at tiny settings (to check the command, not
 for numbers); ``--envs`` keeps only some particle tasks; ``--root DIR`` edits the files of another
@@ -132,6 +133,14 @@ class Runs:
         return self.once("particle env speed", lambda: particle_env_rows(repeats=1 if self.s.quick else 3,
                                                                          env_ids=envs))
 
+    def pick_place_speed(self) -> list[dict[str, Any]]:
+        from benchmarks.speed import pick_place_speed_rows
+
+        configs = tuple(c for c in (("ClothFold-v0", 1), ("ClothFold-v0", 2), ("DryCloth-v0", 1), ("ThreeBoxes-v0", 1))
+                        if self._keep(c[0]))
+        return self.once("pick-and-place speed limit", lambda: pick_place_speed_rows(
+            variants=1 if self.s.quick else 4, steps=1 if self.s.quick else 3, configs=configs))
+
     def mail(self) -> dict[str, Any]:
         from benchmarks import mail_bench
 
@@ -193,6 +202,20 @@ def speed_table(runs: Runs) -> str:
                      f"{_g(rates.get('particles'))} | {v['frames']} |")
     return "\n".join(lines) + stamp("speed-table", runs.s, "env steps per second of the calling thread's CPU time, "
                                                          "one env, default resolution and pickers, random actions")
+
+
+def pick_place_speed_table(runs: Runs) -> str:
+    """Pick-and-place at the task's default schedule against the 1 m/s held-picker limit."""
+    lines = ["| env | pickers | held pickers move | frames/step | env steps/s | cost | fastest particle (m/s) "
+             "| farthest particle (m) |", "|---|---|---|---|---|---|---|---|"]
+    for r in runs.pick_place_speed():
+        speed = "task schedule" if r["pick_place_speed"] == "default" else f"≤ {r['pick_place_speed']:g} m/s"
+        lines.append(f"| {r['env']} | {r['pickers']} | {speed} | {r['frames']} | {_g(r['cpu_env_steps_per_s'])} | "
+                     f"{r['cost_vs_default']}× | {r['fastest_particle_m_s']} | {r['farthest_particle_m']} |")
+    return "\n".join(lines) + stamp("pick-place-speed-table", runs.s, "MAIL-style random pick-and-place (a random "
+                                   "particle, a random place), 3 steps on each of 4 train variants; env steps per "
+                                   "second of the calling thread's CPU time; particle speed at the end of a step, "
+                                   "distance from the workspace centre along x or y")
 
 
 def _g(x: Any) -> str:
@@ -341,6 +364,7 @@ class Table:
 TABLES: dict[str, Table] = {
     "expert-table": Table("docs/particle_tasks.md", expert_table),
     "speed-table": Table("docs/particle_tasks.md", speed_table),
+    "pick-place-speed-table": Table("docs/particle_tasks.md", pick_place_speed_table),
     "readme-expert-table": Table("README.md", readme_expert_table),
     "readme-speed-table": Table("README.md", readme_speed_table),
     "mail-dynamics-table": Table("docs/mail.md", mail_dynamics_table),
@@ -348,7 +372,7 @@ TABLES: dict[str, Table] = {
 }
 GROUPS: dict[str, tuple[str, ...]] = {
     "all": tuple(TABLES),
-    "particles": ("expert-table", "speed-table"),
+    "particles": ("expert-table", "speed-table", "pick-place-speed-table"),
     "readme": ("readme-expert-table", "readme-speed-table"),
     "mail": ("mail-dynamics-table", "mail-transfer-table"),
     "experts": ("expert-table", "readme-expert-table"),

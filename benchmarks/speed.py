@@ -586,6 +586,60 @@ def particle_env_rows(device: str = "cpu", repeats: int = 3,
     return rows
 
 
+def _random_pick_place_run(env: Any, variants: int, steps: int, seed: int) -> dict[str, float]:
+    """MAIL's random pick-and-place (a random particle, a random place) on ``variants`` variants:
+    thread-CPU seconds of the steps, frames per step, and how fast / far the particles end up."""
+    import numpy as np
+
+    from lfd_envs.experts.random_pick_place import RandomPickPlacePolicy
+
+    base = env.unwrapped
+    policy = RandomPickPlacePolicy(env, seed=seed)
+    cpu, frames, fastest, farthest = 0.0, [], 0.0, 0.0
+    for v in range(variants):
+        env.reset(seed=seed + v, options={"variant": v})
+        policy.reset()
+        for _ in range(steps):
+            action = policy.predict(None)[0]
+            frames.append(int(base.picker_actions.plan_motion(action[None], base.batch.pickers).frames[0]))
+            c0 = time.thread_time()
+            env.step(action)
+            cpu += time.thread_time() - c0
+            fastest = max(fastest, float(np.linalg.norm(base.batch.sim.velocities[0], axis=-1).max()))
+            farthest = max(farthest, float(np.abs(base.particle_positions[:, :2]).max()))
+    return {"cpu_s": cpu, "frames": float(np.mean(frames)), "fastest": fastest, "farthest": farthest}
+
+
+def pick_place_speed_rows(device: str = "cpu", variants: int = 4, steps: int = 3, seed: int = 0,
+                          configs: tuple[tuple[str, int], ...] = (("ClothFold-v0", 1), ("ClothFold-v0", 2),
+                                                                  ("DryCloth-v0", 1), ("ThreeBoxes-v0", 1)),
+                          speeds: tuple[float | None, ...] = (None, 1.0)) -> list[dict[str, Any]]:
+    """Pick-and-place with the held-picker speed limit (``pick_place_speed``, m/s) against the
+    task's default schedule, in the same run: mean engine frames per step, CPU env steps/s and
+    the cost ratio, and the fastest particle at the end of a step / the farthest particle from the
+    workspace centre (m) over MAIL-style random pick-and-place steps on train variants."""
+    import gymnasium as gym
+
+    import lfd_envs  # noqa: F401  (registers the ids)
+
+    rows = []
+    for env_id, pickers in configs:
+        reference = None
+        for speed in speeds:
+            env = gym.make(env_id, action_mode="pick_place", num_pickers=pickers, obs_mode="state", device=device,
+                           pick_place_speed=speed)
+            r = _random_pick_place_run(env, variants, steps, seed)
+            rate = variants * steps / max(r["cpu_s"], 1e-9)
+            reference = rate if reference is None else reference
+            rows.append({"section": "pick_place_speed", "env": env_id, "pickers": pickers,
+                         "pick_place_speed": "default" if speed is None else speed, "frames": round(r["frames"], 1),
+                         "cpu_env_steps_per_s": round(rate, 2), "cost_vs_default": round(reference / rate, 2),
+                         "fastest_particle_m_s": round(r["fastest"], 2), "farthest_particle_m": round(r["farthest"], 3),
+                         "device": device})
+            env.close()
+    return rows
+
+
 # ---------------------------------------------------------------------------- NIST board
 def _nist_steps_per_s(steps: int, seed: int, press: bool = False, **env_kwargs: Any) -> tuple[float, float]:
     """Median (wall, CPU) NistBoardInsert-v0 env steps/s: random actions, or pressing on the board."""
@@ -655,6 +709,7 @@ SECTIONS: dict[str, Callable[..., list[dict[str, Any]]]] = {
     "mopa_training": mopa_training_rows,
     "sawyer": sawyer_env_rows,
     "drycloth_threeboxes": drycloth_threeboxes_rows,
+    "pick_place_speed": pick_place_speed_rows,
     "nist": nist_rows,
 }
 

@@ -331,18 +331,21 @@ class ParticleSim:
             g = self._as_bool_array(grasp, (W, P), "grasp")
         self._frame(targets, g)
 
-    def step_frames(self, picker_targets: Any, grasp: Any = None) -> None:
+    def step_frames(self, picker_targets: Any, grasp: Any = None, world_frames: Any = None) -> None:
         """Advance every world by ``F`` frames; the same as ``F`` calls of :meth:`step`, bit for bit.
 
         Args:
             picker_targets: ``(F, W, P, 3)`` picker positions at the end of each frame.
             grasp: ``(F, W, P)`` grasp flags of each frame, or ``None`` to keep the current flags.
+            world_frames: ``(W,)`` frames each world runs, ``0..F`` (default ``F`` for all). A world
+                stops after its own frames: the batch runs on, and the world is then put back in
+                the state it had after them, so it ends exactly as if stepped alone.
 
         All inputs are validated and converted once; frames without a grasp change only set the
         picker path and replay the recorded frame graph (minimal Python work per frame).
 
         Raises:
-            ValueError: wrong shapes, NaN/inf values.
+            ValueError: wrong shapes, NaN/inf values, frame counts outside ``0..F``.
         """
         W, P = self._W, self._P
         arr = np.asarray(picker_targets) if not isinstance(picker_targets, np.ndarray) else picker_targets
@@ -354,6 +357,33 @@ class ParticleSim:
             flags = np.broadcast_to(self._grasped, (F, W, P))
         else:
             flags = self._as_bool_array(grasp, (F, W, P), "grasp")
+        counts = self._frame_counts(world_frames, F)
+        stops = sorted(set(counts.tolist()) - {F})
+        saved: dict[int, dict[str, np.ndarray]] = {}
+        begin = 0
+        for stop in stops:  # run up to the next world's last frame, keep that world's state
+            self._step_frames(targets[begin:stop], flags[begin:stop])
+            begin = stop
+            saved.update({int(w): self.get_state(int(w)) for w in np.flatnonzero(counts == stop)})
+        self._step_frames(targets[begin:], flags[begin:])
+        for w, state in saved.items():
+            self.set_state(state, world=w)
+
+    def _frame_counts(self, world_frames: Any, F: int) -> np.ndarray:
+        """Validated ``world_frames`` of :meth:`step_frames` as ``(W,)`` int64."""
+        if world_frames is None:
+            return np.full(self._W, F, dtype=np.int64)
+        counts = np.asarray(world_frames)
+        if counts.shape != (self._W,) or not np.issubdtype(counts.dtype, np.integer):
+            raise ValueError(f"world_frames must be {self._W} integers, got {world_frames!r}")
+        if counts.min() < 0 or counts.max() > F:
+            raise ValueError(f"world_frames must lie in 0..{F} (the frames given), got {counts.tolist()}")
+        return counts.astype(np.int64)
+
+    def _step_frames(self, targets: np.ndarray, flags: np.ndarray) -> None:
+        """:meth:`step_frames` on validated targets ``(F, W, P, 3)`` and flags ``(F, W, P)``."""
+        W, P = self._W, self._P
+        F = targets.shape[0]
         if F == 0:
             return
         if not P:

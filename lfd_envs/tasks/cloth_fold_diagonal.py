@@ -238,9 +238,11 @@ class ClothFoldDiagonalEnv(ParticleEnv):
     def __init__(self, num_pickers: int | None = None, action_mode: str = "delta", obs_mode: str | None = None,
                  image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
                  render_mode: str | None = None, horizon: int | None = None, pinned: bool = False,
-                 render_size: int | tuple[int, int] | None = None) -> None:
+                 render_size: int | tuple[int, int] | None = None,
+                 pick_place_speed: float | None = None) -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution, pinned=pinned), action_mode, obs_mode,
-                    image_size, device, render_mode, horizon, render_size)
+                    image_size, device, render_mode, horizon, render_size,
+                    pick_place_speed=pick_place_speed)
 
 
 class ClothFoldDiagonalVectorEnv(ParticleVectorEnv):
@@ -252,6 +254,8 @@ class ClothFoldDiagonalVectorEnv(ParticleVectorEnv):
                  obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
                  horizon: int | None = None, pinned: bool = False,
-                 render_size: int | tuple[int, int] | None = None, max_episode_steps: int | None = None) -> None:
+                 render_size: int | tuple[int, int] | None = None, max_episode_steps: int | None = None,
+                 pick_place_speed: float | None = None) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution, pinned=pinned), action_mode,
-                    obs_mode, image_size, device, render_mode, horizon, render_size, max_episode_steps)
+                    obs_mode, image_size, device, render_mode, horizon, render_size, max_episode_steps,
+                    pick_place_speed=pick_place_speed)

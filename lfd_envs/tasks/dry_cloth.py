@@ -233,9 +233,11 @@ class DryClothEnv(PickPlaceParticleEnv):
                  image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
                  render_mode: str | None = None, horizon: int | None = None,
                  render_size: int | tuple[int, int] | None = None, metric: str = "default",
-                 reach: float = DEFAULT_REACH) -> None:
+                 reach: float = DEFAULT_REACH,
+                 pick_place_speed: float | None = None) -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution, metric=metric, reach=reach), action_mode,
-                    obs_mode, image_size, device, render_mode, horizon, render_size)
+                    obs_mode, image_size, device, render_mode, horizon, render_size,
+                    pick_place_speed=pick_place_speed)
 
 
 class DryClothVectorEnv(PickPlaceParticleVectorEnv):
@@ -247,6 +249,8 @@ class DryClothVectorEnv(PickPlaceParticleVectorEnv):
                  obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
                  horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
-                 max_episode_steps: int | None = None, metric: str = "default", reach: float = DEFAULT_REACH) -> None:
+                 max_episode_steps: int | None = None, metric: str = "default", reach: float = DEFAULT_REACH,
+                 pick_place_speed: float | None = None) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution, metric=metric, reach=reach),
-                    action_mode, obs_mode, image_size, device, render_mode, horizon, render_size, max_episode_steps)
+                    action_mode, obs_mode, image_size, device, render_mode, horizon, render_size, max_episode_steps,
+                    pick_place_speed=pick_place_speed)

@@ -12,14 +12,19 @@ world's future never depends on its neighbours. Start states are cached per vari
 
 from __future__ import annotations
 
+import dataclasses
 from collections import OrderedDict
 from typing import Any
 
 import numpy as np
 
+from lfd_envs.core.errors import check_float
 from lfd_envs.core.state import check_range
 from lfd_envs.tasks.particle_task import Context, ParticleTask
 from lfd_envs.tasks.picker_actions import ActionMode, make_action_mode
+
+#: accepted ``pick_place_speed`` range (m/s)
+MIN_PICK_PLACE_SPEED, MAX_PICK_PLACE_SPEED = 0.01, 10.0
 
 __all__ = ["ParticleBatch", "StartState"]
 
@@ -60,19 +65,24 @@ class ParticleBatch:
         action_mode: ``"delta"`` or ``"pick_place"``.
         device: Warp device.
         cache_size: Prepared variants kept in memory.
+        pick_place_speed: Speed limit (m/s) of pickers that hold something in pick-and-place
+            steps (MAIL: 1 m/s), or None for the task's schedule (faster long carries).
     """
 
     def __init__(self, task: ParticleTask, num_worlds: int, action_mode: str, device: str = "cpu",
-                 cache_size: int = 128) -> None:
+                 cache_size: int = 128, pick_place_speed: float | None = None) -> None:
         from lfd_envs.sim import ParticleSim
 
         self.task = task
         self.num_worlds = int(num_worlds)
         self.device = device
         self.workspace = task.workspace()
-        self.action_mode: ActionMode = make_action_mode(
-            action_mode, task.num_pickers, self.workspace, schedule=task.pick_place_schedule())
         params = task.sim_params()
+        schedule = task.pick_place_schedule()
+        if pick_place_speed is not None:
+            speed = check_float("pick_place_speed", pick_place_speed, MIN_PICK_PLACE_SPEED, MAX_PICK_PLACE_SPEED)
+            schedule = dataclasses.replace(schedule, max_speed=speed * params.frame_dt)
+        self.action_mode: ActionMode = make_action_mode(action_mode, task.num_pickers, self.workspace, schedule=schedule)
         first = task.build(np.random.default_rng(0))  # any variant: fixes the topology
         self._gen = ParticleSim(first.builder, 1, params, task.num_pickers, device)
         self.sim = ParticleSim([first.builder] * self.num_worlds, None, params, task.num_pickers, device)
@@ -135,8 +145,9 @@ class ParticleBatch:
     # ------------------------------------------------------------------ stepping
     def step(self, actions: np.ndarray) -> None:
         """One env step of every world with validated actions ``(W, A)``."""
-        targets, grasp = self.action_mode.plan(actions, self.sim.picker_positions)
-        self.sim.step_frames(targets, grasp)  # bitwise the same as one sim.step per frame
+        motion = self.action_mode.plan_motion(actions, self.sim.picker_positions)
+        # bitwise the same as one sim.step per frame; each world stops after its own frames
+        self.sim.step_frames(motion.targets, motion.grasp, motion.frames)
         self._positions = self._evaluation = None
 
     @property

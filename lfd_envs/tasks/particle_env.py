@@ -25,7 +25,8 @@ cloth side / rope particles), ``device`` (Warp device, default ``"cpu"``), ``ren
 (``"rgb_array"`` or None), ``render_size`` (frames of ``render()``), ``horizon`` (default from
 the task per action mode; the vector env also takes ``max_episode_steps``, which
 ``gymnasium.make_vec`` fills in from the spec, as an upper bound like ``gymnasium.make``'s
-``TimeLimit``); plus
+``TimeLimit``), ``pick_place_speed`` (m/s limit on pickers that hold something in
+pick-and-place steps, e.g. 1.0 as in MAIL; default None: the task's own, faster schedule); plus
 task options such as ``pinned``. ``particles`` observations are ``(N + P, 3)``: every particle,
 then the pickers. Tasks whose default action mode is ``"pick_place"`` derive from
 :class:`PickPlaceParticleEnv` / :class:`PickPlaceParticleVectorEnv` instead.
@@ -117,13 +118,15 @@ class ParticleEnv(_ParticleBatchViews, LfdEnv):
     def __init__(self, num_pickers: int | None = None, action_mode: str = "delta", obs_mode: str | None = None,
                  image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
                  render_mode: str | None = None, horizon: int | None = None,
-                 render_size: int | tuple[int, int] | None = None) -> None:
+                 render_size: int | tuple[int, int] | None = None,
+                 pick_place_speed: float | None = None) -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode, image_size,
-                    device, render_mode, horizon, render_size)
+                    device, render_mode, horizon, render_size,
+                    pick_place_speed=pick_place_speed)
 
     def _setup(self, task_options: dict[str, Any], action_mode: str, obs_mode: str | None,
                image_size: Any, device: str, render_mode: str | None, horizon: int | None,
-               render_size: Any = None) -> None:
+               render_size: Any = None, pick_place_speed: float | None = None) -> None:
         """The construction shared by every particle env's ``__init__`` (they differ only in
         defaults and task options): the task, ``LfdEnv.__init__``, the batch, the spaces."""
         check_choice("action_mode", action_mode, ACTION_MODES)
@@ -137,7 +140,7 @@ class ParticleEnv(_ParticleBatchViews, LfdEnv):
         self.action_mode = action_mode
         self.num_pickers = task.num_pickers
         self.device = device
-        self.batch = ParticleBatch(task, 1, action_mode, device)
+        self.batch = ParticleBatch(task, 1, action_mode, device, pick_place_speed=pick_place_speed)
         self.action_space, self.state_space, self.particles_space = self._task_spaces()
         self._finish_init()
 
@@ -235,13 +238,16 @@ class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.Vector
                  obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
                  horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
-                 max_episode_steps: int | None = None) -> None:
+                 max_episode_steps: int | None = None,
+                 pick_place_speed: float | None = None) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode,
-                    image_size, device, render_mode, horizon, render_size, max_episode_steps)
+                    image_size, device, render_mode, horizon, render_size, max_episode_steps,
+                    pick_place_speed=pick_place_speed)
 
     def _setup(self, num_envs: int, task_options: dict[str, Any], action_mode: str, obs_mode: str | None,
                image_size: Any, device: str, render_mode: str | None, horizon: int | None,
-               render_size: Any = None, max_episode_steps: int | None = None) -> None:
+               render_size: Any = None, max_episode_steps: int | None = None,
+               pick_place_speed: float | None = None) -> None:
         num_envs = check_int_range("num_envs", num_envs, 1)
         check_choice("action_mode", action_mode, ACTION_MODES)
         device = _check_device(device)
@@ -260,7 +266,7 @@ class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.Vector
             self.horizon = min(self.horizon, check_int_range("max_episode_steps", max_episode_steps, 1))
         self.device = device
         self.variants = VariantSplit(task.name)
-        self.batch = ParticleBatch(task, self.num_envs, action_mode, device)
+        self.batch = ParticleBatch(task, self.num_envs, action_mode, device, pick_place_speed=pick_place_speed)
         self.single_action_space, state, particles = self._task_spaces()
         self.single_observation_space = observation_space(self.obs_mode, self.image_size, state, particles)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -448,9 +454,11 @@ class PickPlaceParticleEnv(ParticleEnv):
     def __init__(self, num_pickers: int | None = None, action_mode: str = "pick_place", obs_mode: str | None = None,
                  image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
                  render_mode: str | None = None, horizon: int | None = None,
-                 render_size: int | tuple[int, int] | None = None) -> None:
+                 render_size: int | tuple[int, int] | None = None,
+                 pick_place_speed: float | None = None) -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode, image_size,
-                    device, render_mode, horizon, render_size)
+                    device, render_mode, horizon, render_size,
+                    pick_place_speed=pick_place_speed)
 
 
 class PickPlaceParticleVectorEnv(ParticleVectorEnv):
@@ -460,6 +468,8 @@ class PickPlaceParticleVectorEnv(ParticleVectorEnv):
                  obs_mode: str | None = None, image_size: int | tuple[int, int] = 32,
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
                  horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
-                 max_episode_steps: int | None = None) -> None:
+                 max_episode_steps: int | None = None,
+                 pick_place_speed: float | None = None) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode,
-                    image_size, device, render_mode, horizon, render_size, max_episode_steps)
+                    image_size, device, render_mode, horizon, render_size, max_episode_steps,
+                    pick_place_speed=pick_place_speed)

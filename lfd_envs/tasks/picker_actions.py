@@ -17,6 +17,7 @@ future never depends on the other worlds of a batch (a vector env equals single 
 from __future__ import annotations
 
 import functools
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from typing import ClassVar
@@ -25,7 +26,7 @@ import numpy as np
 from gymnasium import spaces
 
 __all__ = ["Workspace", "ActionMode", "DeltaActions", "PickPlaceActions", "PickPlaceSchedule",
-           "ACTION_MODES", "make_action_mode", "carry_point", "arc_length", "FAST_FREE_MOVES"]
+           "ACTION_MODES", "PickerMotion", "make_action_mode", "carry_point", "arc_length", "FAST_FREE_MOVES"]
 
 
 def _read_only(a: np.ndarray) -> np.ndarray:
@@ -106,6 +107,27 @@ class ActionMode(ABC):
         ``pickers`` are the current picker centres ``(W, P, 3)``.
         """
 
+    def plan_motion(self, actions: np.ndarray, pickers: np.ndarray) -> "PickerMotion":
+        """:meth:`plan` with the number of frames each world runs (all ``T`` here)."""
+        targets, grasp = self.plan(actions, pickers)
+        return PickerMotion(targets, grasp, np.full(targets.shape[1], targets.shape[0], dtype=np.int64))
+
+
+@dataclass(frozen=True)
+class PickerMotion:
+    """The picker motion of one env step for a batch of worlds.
+
+    Attributes:
+        targets: Picker centres ``(T, W, P, 3)`` at the end of each frame.
+        grasp: Grasp flags ``(T, W, P)`` of each frame.
+        frames: Frames each world runs ``(W,)``, at most ``T``; a world holds still after its own
+            frames (see ``ParticleSim.step_frames``), so its future does not depend on the others.
+    """
+
+    targets: np.ndarray
+    grasp: np.ndarray
+    frames: np.ndarray
+
 
 class DeltaActions(ActionMode):
     """Per picker ``[dx, dy, dz, grasp]`` in [-1, 1]: ``step_size * a`` metres per frame."""
@@ -152,6 +174,13 @@ class PickPlaceSchedule:
     frames (faster when the distance needs it). Phase lengths are per world; the step always
     lasts :attr:`total_frames` frames and worlds that finish early settle with released pickers.
 
+    With ``max_speed`` set, a picker that holds something (lift, carry, lower) never moves
+    faster than ``max_speed`` m/frame: those phases take as many frames as their distance needs
+    (their ``*_frames`` bounds no longer apply), so a step's length depends on the action (never
+    below :attr:`total_frames`), and each world runs its own number of frames
+    (:class:`PickerMotion`); empty pickers keep their speeds (they collide with nothing unless the
+    engine's ``picker_collision`` is on).
+
     Attributes:
         hover: Approach height (m) above the pick point, and retreat height after release.
         lift: Vertical lift (m) after the grasp and before the carry (and the final lowering).
@@ -159,6 +188,8 @@ class PickPlaceSchedule:
         arc_max: Upper bound of the arc height (m).
         free_speed: Speed (m/frame) of empty pickers.
         carry_speed: Speed (m/frame) of pickers that hold something.
+        max_speed: Speed limit (m/frame) of pickers that hold something, or None (no limit
+            beyond the phase frame bounds).
     """
 
     hover: float = 0.05
@@ -177,12 +208,27 @@ class PickPlaceSchedule:
     release_frames: int = 1
     retreat_frames: int = 4
     settle_frames: int = 6
+    max_speed: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.max_speed is not None and not (np.isfinite(self.max_speed) and self.max_speed > 0):
+            raise ValueError(f"max_speed must be a positive number of metres per frame or None, got {self.max_speed}")
 
     @property
     def total_frames(self) -> int:
+        """Frames of every step without ``max_speed`` (with it: the frames outside the held phases)."""
         return (self.approach_frames + self.descend_frames + self.grasp_frames + self.lift_frames
                 + self.carry_frames + self.lower_frames + self.hold_frames + self.release_frames + self.retreat_frames
                 + self.settle_frames)
+
+    def most_frames(self, workspace: Workspace) -> int:
+        """The longest a step can last in ``workspace`` (:attr:`total_frames` without ``max_speed``)."""
+        if self.max_speed is None:
+            return self.total_frames
+        span = float(np.linalg.norm(workspace.hi - workspace.lo - 2.0 * workspace.margin))
+        held = [self.lift, span + 2.0 * self.arc_max, self.lift]  # lift, carry (chord + rise), lower
+        held_frames = sum(max(1, math.ceil(d / self.max_speed - 1e-9)) for d in held)
+        return self.total_frames - self.lift_frames - self.carry_frames - self.lower_frames + held_frames
 
     def arc_height(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
         """Arc height ``(...)`` of carries from ``start`` to ``end`` ``(..., 3)``."""
@@ -246,7 +292,8 @@ class PickPlaceActions(ActionMode):
 
     @property
     def frames_per_step(self) -> int:
-        return self.schedule.total_frames
+        """Frames of a step (with a ``max_speed`` schedule: the most a step can take)."""
+        return self.schedule.most_frames(self.workspace)
 
     def split(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Pick and place points in metres, each ``(W, P, 3)``, clipped to the workspace."""
@@ -280,23 +327,50 @@ class PickPlaceActions(ActionMode):
         ]
 
     def plan(self, actions: np.ndarray, pickers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        motion = self.plan_motion(actions, pickers)
+        return motion.targets, motion.grasp
+
+    def _phase_frames(self, length: np.ndarray, grab: bool, max_frames: int, speed: float) -> np.ndarray:
+        """Frames ``(W,)`` of one phase whose pickers travel ``length`` ``(W, P)`` metres."""
+        w = length.shape[0]
+        if speed <= 0:  # fixed-length phase (hold)
+            return np.full(w, max_frames, dtype=np.int64)
+        limit = self.schedule.max_speed
+        if grab and limit is not None:  # held phases: as long as the speed limit needs
+            return np.maximum(np.ceil(length.max(axis=-1) / min(speed, limit) - 1e-9), 1).astype(np.int64)
+        return np.clip(np.ceil(length.max(axis=-1) / speed - 1e-9), 1, max_frames).astype(np.int64)
+
+    def _phase_frame_counts(self, pick: np.ndarray, place: np.ndarray, start: np.ndarray) -> list[np.ndarray]:
+        """Frames ``(W,)`` of every phase of :meth:`phases` (0 for skipped phases)."""
+        out = []
+        for end, grab, max_frames, speed, arc in self.phases(pick, place):
+            if max_frames == 0:
+                out.append(np.zeros(len(start), dtype=np.int64))
+                continue
+            length = np.linalg.norm(end - start, axis=-1) if arc is None else arc_length(start, end, arc)
+            out.append(self._phase_frames(length, grab, max_frames, speed))
+            start = end
+        return out
+
+    def plan_motion(self, actions: np.ndarray, pickers: np.ndarray) -> PickerMotion:
         pick, place = self.split(actions)
         start = np.asarray(pickers, dtype=np.float64)
         w, p = start.shape[:2]
-        total = self.frames_per_step
+        counts = self._phase_frame_counts(pick, place, start)
+        if self.schedule.max_speed is None:
+            world_frames = np.full(w, self.schedule.total_frames, dtype=np.int64)
+        else:
+            # never shorter than the task schedule's step: the limit only adds frames where needed
+            world_frames = np.maximum(np.sum(counts, axis=0) + self.schedule.settle_frames, self.schedule.total_frames)
+        total = int(world_frames.max())
         top = self.workspace.hi[2] - self.workspace.margin
         targets = np.empty((total, w, p, 3))
         grasp = np.zeros((total, w, p), dtype=bool)
         t0 = np.zeros(w, dtype=np.int64)  # first frame of the current phase, per world
         frames = np.arange(total)[:, None]  # (T, 1)
-        for end, grab, max_frames, speed, arc in self.phases(pick, place):
+        for (end, grab, max_frames, speed, arc), n in zip(self.phases(pick, place), counts):
             if max_frames == 0:
                 continue
-            length = np.linalg.norm(end - start, axis=-1) if arc is None else arc_length(start, end, arc)
-            if speed > 0:
-                n = np.clip(np.ceil(length.max(axis=-1) / speed - 1e-9), 1, max_frames).astype(np.int64)  # (W,)
-            else:  # fixed-length phase (hold)
-                n = np.full(w, max_frames, dtype=np.int64)
             k = frames - t0[None, :] + 1  # (T, W) frame number inside this phase
             alpha = np.clip(k / n[None, :], 0.0, 1.0)[..., None]  # (T, W, 1)
             inside = (k >= 1) & (k <= n[None, :])
@@ -310,7 +384,7 @@ class PickPlaceActions(ActionMode):
         tail = frames >= t0[None, :]  # settle: stay at the retreat point, released
         targets = np.where(tail[..., None, None], start[None], targets)
         grasp[tail] = False
-        return targets, grasp
+        return PickerMotion(targets, grasp, world_frames)
 
 
 ACTION_MODES = ("delta", "pick_place")
