@@ -84,3 +84,21 @@ def test_random_pick_and_place_at_one_metre_per_second_throws_nothing():
         out[speed] = fastest, farthest
     assert out[None][0] > 3.0 and out[1.0][0] < 2.0
     assert out[1.0][1] < out[None][1] - 0.2
+
+
+def test_bad_world_frames_raise_and_change_nothing():
+    env = gym.make("lfd_envs:ClothFold-v0", action_mode="pick_place", num_pickers=1, resolution=10)
+    env.reset(seed=0)
+    sim = env.unwrapped.batch.sim
+    before = sim.get_state()
+    targets = np.repeat(sim.picker_positions[None], 4, axis=0)
+    for bad in ([5], [-1], [1, 2], [1.5]):
+        with pytest.raises(ValueError, match="world_frames"):
+            sim.step_frames(targets, None, np.array(bad))
+    after = sim.get_state()
+    assert all(np.array_equal(before[k], after[k]) for k in before)
+    sim.step_frames(targets, None, np.array([2]))  # a world stopped after 2 of 4 frames ...
+    two = sim.get_state()
+    sim.set_state(before)
+    sim.step_frames(targets[:2])  # ... is where 2 frames take it
+    assert all(np.array_equal(two[k], sim.get_state()[k]) for k in two)
