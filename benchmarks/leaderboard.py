@@ -326,7 +326,7 @@ def _aggregate_section(table: dict[str, dict[str, list[dict[str, Any]]]], suite:
     est = iqm_and_mean(scores)
     left_out = len(table) - len(cells)
     scope = (f"; per env, its cell with the most agents ({left_out} cell{'s' if left_out != 1 else ''} with fewer "
-             "left out)" if left_out else "")
+             f"left out; ties go to the first label): {'; '.join(cells)}" if left_out else "")
     lines = ["## Across environments", "",
              f"Agents run on all {len(cells)} environments{scope}; runs = seeds (per-seed mean p̂ on each env), "
              "stratified-bootstrap 95% CIs (rliable).", "",

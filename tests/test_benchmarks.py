@@ -462,5 +462,6 @@ def test_aggregate_compares_agents_on_each_envs_main_cell():
     scores = seed_matrix(main_cells(table))
     assert sorted(scores) == ["bc", "dmfd"] and scores["dmfd"].shape == (3, 2)
     md = render_markdown(results, command="x", suite="s", plot_dir=None, relative_to=Path("."))
-    assert "Agents run on all 2 environments; per env, its cell with the most agents (1 cell with fewer left out)" in md
+    assert ("Agents run on all 2 environments; per env, its cell with the most agents (1 cell with fewer left out; "
+            "ties go to the first label): A-v0 (main); B-v0 (main)") in md
     assert "| bc | 3 × 2 |" in md and "| dmfd | 3 × 2 |" in md
