@@ -25,6 +25,8 @@ Horizons: 100 steps (delta), 3 steps (pick_place).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from lfd_envs.core.errors import check_choice
@@ -134,10 +136,10 @@ class ClothFoldEnv(ParticleEnv):
                  image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
                  render_mode: str | None = None, horizon: int | None = None,
                  render_size: int | tuple[int, int] | None = None, metric: str = "default",
-                 pick_place_speed: float | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution, metric=metric), action_mode, obs_mode,
                     image_size, device, render_mode, horizon, render_size,
-                    pick_place_speed=pick_place_speed)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options)
 
 
 class ClothFoldVectorEnv(ParticleVectorEnv):
@@ -150,7 +152,7 @@ class ClothFoldVectorEnv(ParticleVectorEnv):
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
                  horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
                  max_episode_steps: int | None = None, metric: str = "default",
-                 pick_place_speed: float | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution, metric=metric), action_mode,
                     obs_mode, image_size, device, render_mode, horizon, render_size, max_episode_steps,
-                    pick_place_speed=pick_place_speed)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options)

@@ -37,6 +37,7 @@ Default observation: a 32x32 RGB image (DMfD). Horizons: 100 (delta), 3 (pick_pl
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import numpy as np
 
@@ -239,10 +240,10 @@ class ClothFoldDiagonalEnv(ParticleEnv):
                  image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
                  render_mode: str | None = None, horizon: int | None = None, pinned: bool = False,
                  render_size: int | tuple[int, int] | None = None,
-                 pick_place_speed: float | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution, pinned=pinned), action_mode, obs_mode,
                     image_size, device, render_mode, horizon, render_size,
-                    pick_place_speed=pick_place_speed)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options)
 
 
 class ClothFoldDiagonalVectorEnv(ParticleVectorEnv):
@@ -255,7 +256,7 @@ class ClothFoldDiagonalVectorEnv(ParticleVectorEnv):
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
                  horizon: int | None = None, pinned: bool = False,
                  render_size: int | tuple[int, int] | None = None, max_episode_steps: int | None = None,
-                 pick_place_speed: float | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution, pinned=pinned), action_mode,
                     obs_mode, image_size, device, render_mode, horizon, render_size, max_episode_steps,
-                    pick_place_speed=pick_place_speed)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options)

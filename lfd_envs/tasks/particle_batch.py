@@ -23,6 +23,19 @@ from lfd_envs.core.state import check_range
 from lfd_envs.tasks.particle_task import Context, ParticleTask
 from lfd_envs.tasks.picker_actions import ActionMode, make_action_mode
 
+def with_sim_options(params: Any, sim_options: dict[str, Any] | None) -> Any:
+    """``params`` (a ``SimParams``) with the fields named in ``sim_options`` replaced (validated by
+    ``SimParams``); an unknown name is a ``ValueError`` listing the valid ones."""
+    if sim_options is None:
+        return params
+    if not isinstance(sim_options, dict):
+        raise ValueError(f"sim_options must be a dict of SimParams fields, got {type(sim_options).__name__}")
+    unknown = sorted(set(sim_options) - set(params.field_names()))
+    if unknown:
+        raise ValueError(f"sim_options: unknown engine parameter(s) {unknown}; valid: {list(params.field_names())}")
+    return dataclasses.replace(params, **sim_options)
+
+
 #: accepted ``pick_place_speed`` range (m/s)
 MIN_PICK_PLACE_SPEED, MAX_PICK_PLACE_SPEED = 0.01, 10.0
 
@@ -67,17 +80,20 @@ class ParticleBatch:
         cache_size: Prepared variants kept in memory.
         pick_place_speed: Speed limit (m/s) of pickers that hold something in pick-and-place
             steps (MAIL: 1 m/s), or None for the task's schedule (faster long carries).
+        sim_options: Engine parameters (:class:`~lfd_envs.sim.SimParams` fields) that replace
+            the task's, e.g. ``{"picker_collision": True}``; None keeps the task's.
     """
 
     def __init__(self, task: ParticleTask, num_worlds: int, action_mode: str, device: str = "cpu",
-                 cache_size: int = 128, pick_place_speed: float | None = None) -> None:
+                 cache_size: int = 128, pick_place_speed: float | None = None,
+                 sim_options: dict[str, Any] | None = None) -> None:
         from lfd_envs.sim import ParticleSim
 
         self.task = task
         self.num_worlds = int(num_worlds)
         self.device = device
         self.workspace = task.workspace()
-        params = task.sim_params()
+        params = with_sim_options(task.sim_params(), sim_options)
         schedule = task.pick_place_schedule()
         if pick_place_speed is not None:
             speed = check_float("pick_place_speed", pick_place_speed, MIN_PICK_PLACE_SPEED, MAX_PICK_PLACE_SPEED)

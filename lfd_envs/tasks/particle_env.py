@@ -26,7 +26,9 @@ cloth side / rope particles), ``device`` (Warp device, default ``"cpu"``), ``ren
 the task per action mode; the vector env also takes ``max_episode_steps``, which
 ``gymnasium.make_vec`` fills in from the spec, as an upper bound like ``gymnasium.make``'s
 ``TimeLimit``), ``pick_place_speed`` (m/s limit on pickers that hold something in
-pick-and-place steps, e.g. 1.0 as in MAIL; default None: the task's own, faster schedule); plus
+pick-and-place steps, e.g. 1.0 as in MAIL; default None: the task's own, faster schedule),
+``sim_options`` (engine parameters replacing the task's, a dict of ``SimParams`` fields such as
+``{"picker_collision": True, "self_collision_distance": 0.01}``; default None); plus
 task options such as ``pinned``. ``particles`` observations are ``(N + P, 3)``: every particle,
 then the pickers. Tasks whose default action mode is ``"pick_place"`` derive from
 :class:`PickPlaceParticleEnv` / :class:`PickPlaceParticleVectorEnv` instead.
@@ -119,14 +121,15 @@ class ParticleEnv(_ParticleBatchViews, LfdEnv):
                  image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
                  render_mode: str | None = None, horizon: int | None = None,
                  render_size: int | tuple[int, int] | None = None,
-                 pick_place_speed: float | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode, image_size,
                     device, render_mode, horizon, render_size,
-                    pick_place_speed=pick_place_speed)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options)
 
     def _setup(self, task_options: dict[str, Any], action_mode: str, obs_mode: str | None,
                image_size: Any, device: str, render_mode: str | None, horizon: int | None,
-               render_size: Any = None, pick_place_speed: float | None = None) -> None:
+               render_size: Any = None, pick_place_speed: float | None = None,
+               sim_options: dict[str, Any] | None = None) -> None:
         """The construction shared by every particle env's ``__init__`` (they differ only in
         defaults and task options): the task, ``LfdEnv.__init__``, the batch, the spaces."""
         check_choice("action_mode", action_mode, ACTION_MODES)
@@ -140,7 +143,8 @@ class ParticleEnv(_ParticleBatchViews, LfdEnv):
         self.action_mode = action_mode
         self.num_pickers = task.num_pickers
         self.device = device
-        self.batch = ParticleBatch(task, 1, action_mode, device, pick_place_speed=pick_place_speed)
+        self.batch = ParticleBatch(task, 1, action_mode, device, pick_place_speed=pick_place_speed,
+                                   sim_options=sim_options)
         self.action_space, self.state_space, self.particles_space = self._task_spaces()
         self._finish_init()
 
@@ -239,15 +243,15 @@ class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.Vector
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
                  horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
                  max_episode_steps: int | None = None,
-                 pick_place_speed: float | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode,
                     image_size, device, render_mode, horizon, render_size, max_episode_steps,
-                    pick_place_speed=pick_place_speed)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options)
 
     def _setup(self, num_envs: int, task_options: dict[str, Any], action_mode: str, obs_mode: str | None,
                image_size: Any, device: str, render_mode: str | None, horizon: int | None,
                render_size: Any = None, max_episode_steps: int | None = None,
-               pick_place_speed: float | None = None) -> None:
+               pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
         num_envs = check_int_range("num_envs", num_envs, 1)
         check_choice("action_mode", action_mode, ACTION_MODES)
         device = _check_device(device)
@@ -266,7 +270,8 @@ class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.Vector
             self.horizon = min(self.horizon, check_int_range("max_episode_steps", max_episode_steps, 1))
         self.device = device
         self.variants = VariantSplit(task.name)
-        self.batch = ParticleBatch(task, self.num_envs, action_mode, device, pick_place_speed=pick_place_speed)
+        self.batch = ParticleBatch(task, self.num_envs, action_mode, device, pick_place_speed=pick_place_speed,
+                                   sim_options=sim_options)
         self.single_action_space, state, particles = self._task_spaces()
         self.single_observation_space = observation_space(self.obs_mode, self.image_size, state, particles)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -455,10 +460,10 @@ class PickPlaceParticleEnv(ParticleEnv):
                  image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
                  render_mode: str | None = None, horizon: int | None = None,
                  render_size: int | tuple[int, int] | None = None,
-                 pick_place_speed: float | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode, image_size,
                     device, render_mode, horizon, render_size,
-                    pick_place_speed=pick_place_speed)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options)
 
 
 class PickPlaceParticleVectorEnv(ParticleVectorEnv):
@@ -469,7 +474,7 @@ class PickPlaceParticleVectorEnv(ParticleVectorEnv):
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
                  horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
                  max_episode_steps: int | None = None,
-                 pick_place_speed: float | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode,
                     image_size, device, render_mode, horizon, render_size, max_episode_steps,
-                    pick_place_speed=pick_place_speed)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options)
