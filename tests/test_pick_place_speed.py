@@ -102,3 +102,18 @@ def test_bad_world_frames_raise_and_change_nothing():
     sim.set_state(before)
     sim.step_frames(targets[:2])  # ... is where 2 frames take it
     assert all(np.array_equal(two[k], sim.get_state()[k]) for k in two)
+
+
+def test_free_speed_limit_slows_empty_pickers_for_colliding_pickers():
+    limit = 0.01
+    _, motion = _plan(PickPlaceSchedule(max_speed=limit, max_free_speed=limit))
+    for w in range(2):
+        n = motion.frames[w]
+        path = np.concatenate([[[0.0, 0.0, 0.3]], motion.targets[:n, w, 0]])
+        assert np.linalg.norm(np.diff(path, axis=0), axis=-1).max() <= limit + 1e-9
+    env = gym.make("lfd_envs:ClothFold-v0", action_mode="pick_place", resolution=10, pick_place_speed=1.0,
+                   sim_options={"picker_collision": True})
+    schedule = env.unwrapped.picker_actions.schedule
+    assert schedule.max_free_speed == schedule.max_speed == pytest.approx(0.01)
+    plain = gym.make("lfd_envs:ClothFold-v0", action_mode="pick_place", resolution=10, pick_place_speed=1.0)
+    assert plain.unwrapped.picker_actions.schedule.max_free_speed is None

@@ -79,7 +79,8 @@ class ParticleBatch:
         device: Warp device.
         cache_size: Prepared variants kept in memory.
         pick_place_speed: Speed limit (m/s) of pickers that hold something in pick-and-place
-            steps (MAIL: 1 m/s), or None for the task's schedule (faster long carries).
+            steps (MAIL: 1 m/s), or None for the task's schedule (faster long carries); with
+            ``picker_collision`` in ``sim_options`` it limits empty pickers too.
         sim_options: Engine parameters (:class:`~lfd_envs.sim.SimParams` fields) that replace
             the task's, e.g. ``{"picker_collision": True}``; None keeps the task's.
     """
@@ -97,7 +98,10 @@ class ParticleBatch:
         schedule = task.pick_place_schedule()
         if pick_place_speed is not None:
             speed = check_float("pick_place_speed", pick_place_speed, MIN_PICK_PLACE_SPEED, MAX_PICK_PLACE_SPEED)
-            schedule = dataclasses.replace(schedule, max_speed=speed * params.frame_dt)
+            limit = speed * params.frame_dt
+            # colliding pickers touch the cloth while empty too: limit those moves as well
+            schedule = dataclasses.replace(schedule, max_speed=limit,
+                                           max_free_speed=limit if params.picker_collision else None)
         self.action_mode: ActionMode = make_action_mode(action_mode, task.num_pickers, self.workspace, schedule=schedule)
         first = task.build(np.random.default_rng(0))  # any variant: fixes the topology
         self._gen = ParticleSim(first.builder, 1, params, task.num_pickers, device)

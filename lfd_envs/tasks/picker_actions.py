@@ -178,8 +178,9 @@ class PickPlaceSchedule:
     faster than ``max_speed`` m/frame: those phases take as many frames as their distance needs
     (their ``*_frames`` bounds no longer apply), so a step's length depends on the action (never
     below :attr:`total_frames`), and each world runs its own number of frames
-    (:class:`PickerMotion`); empty pickers keep their speeds (they collide with nothing unless the
-    engine's ``picker_collision`` is on).
+    (:class:`PickerMotion`). ``max_free_speed`` does the same for empty pickers (approach,
+    descend, release, retreat); they need it only when the engine's ``picker_collision`` is on,
+    since otherwise they touch nothing.
 
     Attributes:
         hover: Approach height (m) above the pick point, and retreat height after release.
@@ -190,6 +191,7 @@ class PickPlaceSchedule:
         carry_speed: Speed (m/frame) of pickers that hold something.
         max_speed: Speed limit (m/frame) of pickers that hold something, or None (no limit
             beyond the phase frame bounds).
+        max_free_speed: Speed limit (m/frame) of empty pickers, or None.
     """
 
     hover: float = 0.05
@@ -209,26 +211,44 @@ class PickPlaceSchedule:
     retreat_frames: int = 4
     settle_frames: int = 6
     max_speed: float | None = None
+    max_free_speed: float | None = None
 
     def __post_init__(self) -> None:
-        if self.max_speed is not None and not (np.isfinite(self.max_speed) and self.max_speed > 0):
-            raise ValueError(f"max_speed must be a positive number of metres per frame or None, got {self.max_speed}")
+        for name in ("max_speed", "max_free_speed"):
+            value = getattr(self, name)
+            if value is not None and not (np.isfinite(value) and value > 0):
+                raise ValueError(f"{name} must be a positive number of metres per frame or None, got {value}")
+
+    @property
+    def limited(self) -> bool:
+        """Whether a speed limit makes step lengths depend on the action."""
+        return self.max_speed is not None or self.max_free_speed is not None
 
     @property
     def total_frames(self) -> int:
-        """Frames of every step without ``max_speed`` (with it: the frames outside the held phases)."""
+        """Frames of every step without a speed limit (with one: the fewest a step takes)."""
         return (self.approach_frames + self.descend_frames + self.grasp_frames + self.lift_frames
                 + self.carry_frames + self.lower_frames + self.hold_frames + self.release_frames + self.retreat_frames
                 + self.settle_frames)
 
     def most_frames(self, workspace: Workspace) -> int:
-        """The longest a step can last in ``workspace`` (:attr:`total_frames` without ``max_speed``)."""
-        if self.max_speed is None:
-            return self.total_frames
+        """The longest a step can last in ``workspace`` (:attr:`total_frames` without a speed limit)."""
         span = float(np.linalg.norm(workspace.hi - workspace.lo - 2.0 * workspace.margin))
-        held = [self.lift, span + 2.0 * self.arc_max, self.lift]  # lift, carry (chord + rise), lower
-        held_frames = sum(max(1, math.ceil(d / self.max_speed - 1e-9)) for d in held)
-        return self.total_frames - self.lift_frames - self.carry_frames - self.lower_frames + held_frames
+        total = self.total_frames
+        if self.max_speed is not None:  # lift, carry (chord + rise), lower
+            total += self._frames_beyond(self.max_speed, [(self.lift, self.lift_frames),
+                                                          (span + 2.0 * self.arc_max, self.carry_frames),
+                                                          (self.lift, self.lower_frames)])
+        if self.max_free_speed is not None:  # approach, descend (hover), retreat (hover)
+            total += self._frames_beyond(self.max_free_speed, [(span, self.approach_frames),
+                                                               (self.hover, self.descend_frames),
+                                                               (self.hover, self.retreat_frames)])
+        return total
+
+    @staticmethod
+    def _frames_beyond(speed: float, phases: list[tuple[float, int]]) -> int:
+        """Frames that phases of the given (longest distance, frame bound) need beyond their bounds."""
+        return sum(max(0, math.ceil(d / speed - 1e-9) - bound) for d, bound in phases)
 
     def arc_height(self, start: np.ndarray, end: np.ndarray) -> np.ndarray:
         """Arc height ``(...)`` of carries from ``start`` to ``end`` ``(..., 3)``."""
@@ -292,7 +312,7 @@ class PickPlaceActions(ActionMode):
 
     @property
     def frames_per_step(self) -> int:
-        """Frames of a step (with a ``max_speed`` schedule: the most a step can take)."""
+        """Frames of a step (with a speed-limited schedule: the most a step can take)."""
         return self.schedule.most_frames(self.workspace)
 
     def split(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -335,8 +355,8 @@ class PickPlaceActions(ActionMode):
         w = length.shape[0]
         if speed <= 0:  # fixed-length phase (hold)
             return np.full(w, max_frames, dtype=np.int64)
-        limit = self.schedule.max_speed
-        if grab and limit is not None:  # held phases: as long as the speed limit needs
+        limit = self.schedule.max_speed if grab else self.schedule.max_free_speed
+        if limit is not None:  # limited phases: as long as the speed limit needs
             return np.maximum(np.ceil(length.max(axis=-1) / min(speed, limit) - 1e-9), 1).astype(np.int64)
         return np.clip(np.ceil(length.max(axis=-1) / speed - 1e-9), 1, max_frames).astype(np.int64)
 
@@ -357,7 +377,7 @@ class PickPlaceActions(ActionMode):
         start = np.asarray(pickers, dtype=np.float64)
         w, p = start.shape[:2]
         counts = self._phase_frame_counts(pick, place, start)
-        if self.schedule.max_speed is None:
+        if not self.schedule.limited:
             world_frames = np.full(w, self.schedule.total_frames, dtype=np.int64)
         else:
             # never shorter than the task schedule's step: the limit only adds frames where needed
