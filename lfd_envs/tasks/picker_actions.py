@@ -235,9 +235,9 @@ class PickPlaceSchedule:
         """The longest a step can last in ``workspace`` (:attr:`total_frames` without a speed limit)."""
         span = float(np.linalg.norm(workspace.hi - workspace.lo - 2.0 * workspace.margin))
         total = self.total_frames
-        if self.max_speed is not None:  # lift, carry (chord + rise), lower
+        if self.max_speed is not None:  # lift, carry (chord + rise, fastest at pi/2 its mean speed), lower
             total += self._frames_beyond(self.max_speed, [(self.lift, self.lift_frames),
-                                                          (span + 2.0 * self.arc_max, self.carry_frames),
+                                                          (math.pi / 2 * (span + 2.0 * self.arc_max), self.carry_frames),
                                                           (self.lift, self.lower_frames)])
         if self.max_free_speed is not None:  # approach, descend (hover), retreat (hover)
             total += self._frames_beyond(self.max_free_speed, [(span, self.approach_frames),
@@ -350,14 +350,18 @@ class PickPlaceActions(ActionMode):
         motion = self.plan_motion(actions, pickers)
         return motion.targets, motion.grasp
 
-    def _phase_frames(self, length: np.ndarray, grab: bool, max_frames: int, speed: float) -> np.ndarray:
-        """Frames ``(W,)`` of one phase whose pickers travel ``length`` ``(W, P)`` metres."""
+    def _phase_frames(self, length: np.ndarray, grab: bool, max_frames: int, speed: float,
+                      peak: float = 1.0) -> np.ndarray:
+        """Frames ``(W,)`` of one phase whose pickers travel ``length`` ``(W, P)`` metres; ``peak``
+        is the phase's largest speed over its mean speed (a carry eases in and out: pi/2)."""
         w = length.shape[0]
         if speed <= 0:  # fixed-length phase (hold)
             return np.full(w, max_frames, dtype=np.int64)
         limit = self.schedule.max_speed if grab else self.schedule.max_free_speed
-        if limit is not None:  # limited phases: as long as the speed limit needs
-            return np.maximum(np.ceil(length.max(axis=-1) / min(speed, limit) - 1e-9), 1).astype(np.int64)
+        if limit is not None:  # limited phases: as long as the speed limit needs, at their fastest frame
+            frames = np.maximum(np.ceil(length.max(axis=-1) / speed - 1e-9),
+                                np.ceil(peak * length.max(axis=-1) / limit - 1e-9))
+            return np.maximum(frames, 1).astype(np.int64)
         return np.clip(np.ceil(length.max(axis=-1) / speed - 1e-9), 1, max_frames).astype(np.int64)
 
     def _phase_frame_counts(self, pick: np.ndarray, place: np.ndarray, start: np.ndarray) -> list[np.ndarray]:
@@ -368,7 +372,7 @@ class PickPlaceActions(ActionMode):
                 out.append(np.zeros(len(start), dtype=np.int64))
                 continue
             length = np.linalg.norm(end - start, axis=-1) if arc is None else arc_length(start, end, arc)
-            out.append(self._phase_frames(length, grab, max_frames, speed))
+            out.append(self._phase_frames(length, grab, max_frames, speed, 1.0 if arc is None else math.pi / 2))
             start = end
         return out
 
