@@ -10,11 +10,13 @@ Examples::
 
     python -m benchmarks.experts --variants 100 [--jobs 16]
     python -m benchmarks.experts --variants 10 --tasks ClothFold-v0 --modes delta
+    python -m benchmarks.experts --variants 6 --env-kwargs '{"pick_place_speed": 1.0}'
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from dataclasses import dataclass
 from typing import Any, Iterator
@@ -64,8 +66,9 @@ ROWS += tuple(
 
 def evaluate_expert(env_id: str, num_variants: int, num_pickers: int | None = None, action_mode: str = "delta",
                     split: str = "eval", resolution: int | None = None, seed: int = 0,
-                    first_variant: int = 0) -> np.ndarray:
-    """Final p̂ of the scripted expert on variants ``first_variant .. first_variant+num_variants-1``."""
+                    first_variant: int = 0, env_kwargs: dict[str, Any] | None = None) -> np.ndarray:
+    """Final p̂ of the scripted expert on variants ``first_variant .. first_variant+num_variants-1``
+    (``env_kwargs``: further ``gym.make`` arguments, e.g. ``sim_options``)."""
     import gymnasium as gym
 
     import lfd_envs  # noqa: F401  (registers the ids)
@@ -77,7 +80,7 @@ def evaluate_expert(env_id: str, num_variants: int, num_pickers: int | None = No
         kwargs["num_pickers"] = num_pickers
     if resolution is not None:
         kwargs["resolution"] = resolution
-    env = gym.make(env_id, **kwargs)
+    env = gym.make(env_id, **{**kwargs, **(env_kwargs or {})})
     expert = make_expert(env)
     scores = []
     for k in range(first_variant, first_variant + num_variants):
@@ -92,10 +95,10 @@ def _chunk(args: tuple) -> tuple[int, int, np.ndarray, float]:
     import warp as wp
 
     wp.config.quiet = True
-    index, row, first, count, resolution = args
+    index, row, first, count, resolution, env_kwargs = args
     t0 = time.perf_counter()
     scores = evaluate_expert(row.env_id, count, row.num_pickers, row.action_mode, resolution=resolution,
-                             first_variant=first)
+                             first_variant=first, env_kwargs=env_kwargs)
     return index, first, scores, time.perf_counter() - t0
 
 
@@ -109,11 +112,11 @@ def select_rows(tasks: set[str] | None = None, modes: set[str] | None = None) ->
 
 
 def expert_results(rows: list[Row], variants: int, resolution: int | None = None,
-                   jobs: int = 1) -> Iterator[tuple[Row, np.ndarray, float]]:
+                   jobs: int = 1, env_kwargs: dict[str, Any] | None = None) -> Iterator[tuple[Row, np.ndarray, float]]:
     """``(row, final p̂ per variant, seconds per episode)`` for every row, as each row finishes
     (``jobs`` > 1: variants split into chunks over worker processes)."""
     chunk = variants if jobs <= 1 else max(1, -(-variants * len(rows) // (2 * jobs)))
-    work = [(i, row, first, min(chunk, variants - first), resolution)
+    work = [(i, row, first, min(chunk, variants - first), resolution, env_kwargs)
             for i, row in enumerate(rows) for first in range(0, variants, chunk)]
     results: dict[int, list[tuple[int, np.ndarray, float]]] = {i: [] for i in range(len(rows))}
     if jobs <= 1:
@@ -146,15 +149,18 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--modes", default="delta,pick_place", help="comma-separated action modes")
     parser.add_argument("--resolution", type=int, default=None, help="particles per side (default: task default)")
     parser.add_argument("--jobs", type=int, default=1, help="worker processes (variants are split into chunks)")
+    parser.add_argument("--env-kwargs", type=json.loads, default=None,
+                        help="JSON object of further gym.make arguments, e.g. "
+                             "'{\"pick_place_speed\": 1.0, \"sim_options\": {\"picker_collision\": true}}'")
     args = parser.parse_args(argv)
     import warp as wp
 
     wp.config.quiet = True
     rows = select_rows(set(filter(None, args.tasks.split(","))), set(args.modes.split(",")))
     print(f"Scripted experts: mean final p̂ over eval variants 0..{args.variants - 1} "
-          f"(resolution {args.resolution or 'default'})\n")
+          f"(resolution {args.resolution or 'default'}{f', env kwargs {args.env_kwargs}' if args.env_kwargs else ''})\n")
     print(TABLE_HEADER)
-    for row, scores, sec in expert_results(rows, args.variants, args.resolution, args.jobs):
+    for row, scores, sec in expert_results(rows, args.variants, args.resolution, args.jobs, args.env_kwargs):
         print(table_row(row, scores, sec), flush=True)
 
 
