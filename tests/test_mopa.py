@@ -368,8 +368,17 @@ def test_planner_increases_exploration_coverage_push2d(push2d):
 def test_benchmark_adapter_counts_low_level_steps_and_acts_on_plain_env(push2d, one_torch_thread):
     agent = MoPASAC.for_benchmark(gym.make("Push2DObstacle-v0"), seed=0, learning_starts=10_000,
                                   wrapper_kwargs={"time_limit": 0.2})
-    agent.learn(60)
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class CountDecisions(BaseCallback):
+        def _on_step(self) -> bool:
+            self.n = getattr(self, "n", 0) + 1
+            return True
+
+    counter = CountDecisions()
+    agent.learn(60, callback=counter)
     assert 60 <= agent.train_env.low_level_steps < 60 + 400  # stops after the action crossing the budget
+    assert 1 <= counter.n <= agent.train_env.low_level_steps  # a user callback sees every decision
     env = gym.make("Push2DObstacle-v0")
     agent.bind(env)
     obs, _ = env.reset(seed=1)

@@ -68,10 +68,13 @@ class MoPAAgent:
     def for_benchmark(cls, env: gym.Env, seed: int = 0, **kwargs: Any) -> "MoPAAgent":
         return cls(env, seed=seed, **kwargs)
 
-    def learn(self, total_timesteps: int, reset_num_timesteps: bool = True, **kwargs: Any) -> "MoPAAgent":
-        """Train for ``total_timesteps`` low-level env steps."""
+    def learn(self, total_timesteps: int, reset_num_timesteps: bool = True, callback: Any = None,
+              **kwargs: Any) -> "MoPAAgent":
+        """Train for ``total_timesteps`` low-level env steps (``callback``: SB3 callbacks, called
+        once per decision of the policy)."""
         budget = _LowLevelBudget(self.train_env, total_timesteps)
-        self.model.learn(total_timesteps=int(total_timesteps), callback=budget,
+        extra = [] if callback is None else list(callback) if isinstance(callback, (list, tuple)) else [callback]
+        self.model.learn(total_timesteps=int(total_timesteps), callback=[budget, *extra],
                          reset_num_timesteps=reset_num_timesteps, **kwargs)
         return self
 
