@@ -3,8 +3,10 @@
 An action mode turns a batch of normalised actions ``(W, A)`` into the picker motion of one
 env step: picker targets ``(T, W, P, 3)`` and grasp flags ``(T, W, P)`` for ``T`` engine frames
 (each frame moves every picker linearly to its target, see :meth:`ParticleSim.step`).
-The frame count ``T`` of a step is the same for every world and every action, so a world's
-future never depends on the other worlds of a batch (a vector env equals single envs).
+The frame count of a step depends only on the world's own action (the same for every action
+unless a pick-and-place speed limit is set) and a world holds still after its own frames
+(:class:`PickerMotion`), so a world's future never depends on the other worlds of a batch (a
+vector env equals single envs).
 
 * :class:`DeltaActions` (SoftGym/DMfD) - per picker ``[dx, dy, dz, grasp]``: the picker moves
   ``0.01 * a`` m per frame for ``action_repeat`` = 8 frames (<= 0.08 m per axis and step) and
