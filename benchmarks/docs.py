@@ -134,10 +134,9 @@ class Runs:
                                                                          env_ids=envs))
 
     def pick_place_speed(self) -> list[dict[str, Any]]:
-        from benchmarks.speed import pick_place_speed_rows
+        from benchmarks.speed import PICK_PLACE_SPEED_CONFIGS, pick_place_speed_rows
 
-        configs = tuple(c for c in (("ClothFold-v0", 1), ("ClothFold-v0", 2), ("DryCloth-v0", 1), ("ThreeBoxes-v0", 1))
-                        if self._keep(c[0]))
+        configs = tuple(c for c in PICK_PLACE_SPEED_CONFIGS if self._keep(c[0]))
         return self.once("pick-and-place speed limit", lambda: pick_place_speed_rows(
             variants=1 if self.s.quick else 4, steps=1 if self.s.quick else 3, configs=configs))
 

@@ -21,9 +21,6 @@ import collections
 import time
 from typing import Any
 
-MODES = ("direct", "interpolation", "planner", "failed", "invalid_target")
-
-
 def mode_rows(env_id: str = "Push2DObstacle-v0", steps: int = 20_000, window: int = 5000, learning_starts: int = 100,
               seed: int = 0) -> tuple[list[dict[str, Any]], float]:
     """Per-window rows (decisions, share of each mode, low-level steps per decision, rewarded
@@ -33,6 +30,7 @@ def mode_rows(env_id: str = "Push2DObstacle-v0", steps: int = 20_000, window: in
 
     import lfd_envs  # noqa: F401  (registers the ids)
     from lfd_agents.mopa import MoPAAgent
+    from lfd_agents.mopa.wrapper import MOPA_MODES
 
     agent = MoPAAgent(gym.make(env_id), seed=seed, learning_starts=learning_starts)
     counts: dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
@@ -52,8 +50,8 @@ def mode_rows(env_id: str = "Push2DObstacle-v0", steps: int = 20_000, window: in
     for w in sorted(counts):
         c = counts[w]
         n = max(c["decisions"], 1)
-        rows.append({"steps": f"{w * window // 1000}k-{(w + 1) * window // 1000}k", "decisions": c["decisions"],
-                     **{m: round(c[m] / n, 3) for m in MODES},
+        rows.append({"steps": f"{w * window}-{(w + 1) * window}", "decisions": c["decisions"],
+                     **{m: round(c[m] / n, 3) for m in MOPA_MODES},
                      "steps_per_decision": round(c["low_level"] / n, 2), "rewarded_decisions": c["rewarded"]})
     log_ent = getattr(agent.model, "log_ent_coef", None)
     ent = float(log_ent.detach().exp()) if log_ent is not None else float(agent.model.ent_coef)

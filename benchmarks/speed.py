@@ -610,9 +610,12 @@ def _random_pick_place_run(env: Any, variants: int, steps: int, seed: int) -> di
     return {"cpu_s": cpu, "frames": float(np.mean(frames)), "fastest": fastest, "farthest": farthest}
 
 
+#: (env id, pickers) rows of :func:`pick_place_speed_rows`
+PICK_PLACE_SPEED_CONFIGS = (("ClothFold-v0", 1), ("ClothFold-v0", 2), ("DryCloth-v0", 1), ("ThreeBoxes-v0", 1))
+
+
 def pick_place_speed_rows(device: str = "cpu", variants: int = 4, steps: int = 3, seed: int = 0,
-                          configs: tuple[tuple[str, int], ...] = (("ClothFold-v0", 1), ("ClothFold-v0", 2),
-                                                                  ("DryCloth-v0", 1), ("ThreeBoxes-v0", 1)),
+                          configs: tuple[tuple[str, int], ...] = PICK_PLACE_SPEED_CONFIGS,
                           speeds: tuple[float | None, ...] = (None, 1.0)) -> list[dict[str, Any]]:
     """Pick-and-place with the held-picker speed limit (``pick_place_speed``, m/s) against the
     task's default schedule, in the same run: mean engine frames per step, CPU env steps/s and

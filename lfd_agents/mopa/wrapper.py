@@ -38,8 +38,10 @@ from gymnasium import spaces
 
 from lfd_agents.mopa.planner import OMPLPlanner
 
-__all__ = ["ActionMap", "MoPAPlan", "MoPAWrapper", "rescale_action", "invert_rescale", "PLANNING_INTERFACE"]
+__all__ = ["ActionMap", "MoPAPlan", "MoPAWrapper", "rescale_action", "invert_rescale", "PLANNING_INTERFACE", "MOPA_MODES"]
 
+#: how a policy action is executed (``info["mopa_mode"]``)
+MOPA_MODES = ("direct", "interpolation", "planner", "failed", "invalid_target")
 #: attributes an env must expose to be wrapped
 PLANNING_INTERFACE = ("arm_joint_names", "joint_limits", "arm_qpos", "is_valid", "dq_step", "execute_path")
 
@@ -198,7 +200,7 @@ class MoPAWrapper(gym.Wrapper):
         self._obs: Any = None
         #: low-level env steps executed since construction (MoPA budgets count these)
         self.low_level_steps = 0
-        self.stats = {"direct": 0, "interpolation": 0, "planner": 0, "failed": 0, "invalid_target": 0}
+        self.stats = dict.fromkeys(MOPA_MODES, 0)
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, **kwargs):

@@ -366,10 +366,10 @@ class PickPlaceActions(ActionMode):
             return np.maximum(frames, 1).astype(np.int64)
         return np.clip(np.ceil(length.max(axis=-1) / speed - 1e-9), 1, max_frames).astype(np.int64)
 
-    def _phase_frame_counts(self, pick: np.ndarray, place: np.ndarray, start: np.ndarray) -> list[np.ndarray]:
+    def _phase_frame_counts(self, phases: list, start: np.ndarray) -> list[np.ndarray]:
         """Frames ``(W,)`` of every phase of :meth:`phases` (0 for skipped phases)."""
         out = []
-        for end, grab, max_frames, speed, arc in self.phases(pick, place):
+        for end, grab, max_frames, speed, arc in phases:
             if max_frames == 0:
                 out.append(np.zeros(len(start), dtype=np.int64))
                 continue
@@ -382,7 +382,8 @@ class PickPlaceActions(ActionMode):
         pick, place = self.split(actions)
         start = np.asarray(pickers, dtype=np.float64)
         w, p = start.shape[:2]
-        counts = self._phase_frame_counts(pick, place, start)
+        phases = self.phases(pick, place)
+        counts = self._phase_frame_counts(phases, start)
         if not self.schedule.limited:
             world_frames = np.full(w, self.schedule.total_frames, dtype=np.int64)
         else:
@@ -394,7 +395,7 @@ class PickPlaceActions(ActionMode):
         grasp = np.zeros((total, w, p), dtype=bool)
         t0 = np.zeros(w, dtype=np.int64)  # first frame of the current phase, per world
         frames = np.arange(total)[:, None]  # (T, 1)
-        for (end, grab, max_frames, speed, arc), n in zip(self.phases(pick, place), counts):
+        for (end, grab, max_frames, speed, arc), n in zip(phases, counts):
             if max_frames == 0:
                 continue
             k = frames - t0[None, :] + 1  # (T, W) frame number inside this phase
