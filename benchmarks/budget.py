@@ -4,7 +4,8 @@ The suite's ``budget`` is a request; agents spend it differently (BC ignores it 
 over its dataset, MoPA counts low-level steps, NIST BC counts gradient steps). The harness
 wraps the training env in :class:`StepCounter` and reads the rest from the agent after
 training, so the leaderboard shows what each row cost. Steps an agent takes in envs it makes
-itself (MAIL's CEM on a batched simulator) are not counted.
+itself (MAIL's CEM on a batched simulator) are not counted; the validation episodes of a
+checkpoint selection are.
 """
 
 from __future__ import annotations
@@ -70,13 +71,18 @@ def demo_transitions(agent: Any) -> int:
 
 def env_steps(agent: Any, train_env: StepCounter) -> int:
     """Simulator steps of training: the counter's, or a MoPA wrapper's ``low_level_steps`` (it
-    executes planned paths on the task env directly, past the counter)."""
+    executes planned paths on the task env directly, past the counter), plus the steps of an
+    agent's checkpoint-selection episodes (``validation_env_steps``)."""
     n = int(train_env.env_steps)
+    validation = 0
     for obj in _inner_models(agent):
         low = getattr(getattr(obj, "train_env", None), "low_level_steps", None)
         if isinstance(low, int):
             n = max(n, low)
-    return n
+        extra = getattr(obj, "validation_env_steps", None)
+        if isinstance(extra, int):
+            validation += extra
+    return n + validation
 
 
 def spent(agent: Any, train_env: StepCounter) -> dict[str, Any]:

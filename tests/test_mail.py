@@ -137,6 +137,24 @@ def test_mail_agent_runs_from_the_benchmark_harness():
     assert env.action_space.contains(np.asarray(agent.predict(obs)[0], dtype=np.float32))
 
 
+def test_mail_agent_checkpoint_selection_acts_with_the_best_student_and_counts_its_episodes():
+    from benchmarks.agents import resolve_agent
+    from benchmarks.budget import StepCounter, env_steps
+
+    env = StepCounter(gym.make("ThreeBoxes-v0", num_pickers=1, action_mode="pick_place", obs_mode="state"))
+    agent = resolve_agent("mail")(env, 0, teacher_pickers=3, teacher_episodes=1, population=8, simulator_worlds=8,
+                                  policy_kwargs={"net_arch": [16, 16]}, buffer_size=500, batch_size=8,
+                                  select_episodes=2)
+    agent.learn(10)
+    agent.learn(10, reset_num_timesteps=False)
+    selector = agent.selector
+    assert len(selector.scores) == 2 and selector.best_score == max(selector.scores)
+    assert agent.validation_env_steps == 2 * 2 * 3  # 2 selections x 2 episodes x 3 pick-and-place steps
+    assert env_steps(agent, env) == env.env_steps + agent.validation_env_steps
+    obs, _ = env.reset(seed=0)
+    assert np.array_equal(agent.predict(obs)[0], selector.best_policy.predict(obs, deterministic=True)[0])
+
+
 def _eval_final_p(env, act, episodes=6):
     """Final p̂ of ``episodes`` eval-split episodes (reset seeds 5000 + k) acting with ``act(obs)``."""
     finals = []

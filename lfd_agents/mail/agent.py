@@ -10,7 +10,10 @@ first ``learn``:
    ``backend="learned"``, then ``convert`` (CEM + replay + threshold) into ``workdir``;
 3. DMfD on the student dataset without reference-state initialisation,
 
-and every ``learn`` call continues DMfD training. ``predict`` is DMfD's. With a fixed
+and every ``learn`` call continues DMfD training. ``predict`` is DMfD's, or with
+``select_episodes > 0`` that of the best checkpoint: after every ``learn`` call the student is
+scored on ``select_episodes`` held-out training variants and the best-scoring policy so far
+acts (:class:`lfd_agents.selection.BestCheckpoint`; its episodes count as env steps). With a fixed
 ``workdir`` every stage resumes from disk (a temporary folder is used otherwise).
 
 Config cell example (``benchmarks/configs/paper-mail.json``)::
@@ -29,6 +32,7 @@ import gymnasium as gym
 from lfd_agents.mail.cem import CEMConfig
 from lfd_agents.mail.dynamics import DynamicsConfig
 from lfd_agents.mail.pipeline import MAIL, MAILConfig
+from lfd_agents.selection import BestCheckpoint
 
 __all__ = ["MAILAgent"]
 
@@ -47,14 +51,18 @@ class MAILAgent:
         random_transitions, dynamics_epochs: learned-backend data and training.
         threshold: keep converted episodes whose final p̂ exceeds this (MAIL: 0.3).
         simulator_worlds: batched worlds of the simulator backend.
+        select_episodes: validation episodes per ``learn`` call for checkpoint selection
+            (0: the last policy acts).
+        select_first_variant: first training variant of the validation set (the teacher
+            demonstrations reset on random training variants, so a few may coincide).
         policy: DMfD policy name; ``dmfd_kwargs`` go to :class:`lfd_agents.dmfd.DMfD`.
     """
 
     def __init__(self, env: gym.Env, seed: int = 0, teacher_pickers: int = 2, teacher_episodes: int = 10,
                  backend: str = "simulator", workdir: str | Path | None = None, population: int = 32,
                  iterations: int = 1, horizon: int = 1, random_transitions: int = 300, dynamics_epochs: int = 40,
-                 threshold: float = 0.3, simulator_worlds: int = 32, policy: str = "MlpPolicy",
-                 **dmfd_kwargs: Any):
+                 threshold: float = 0.3, simulator_worlds: int = 32, select_episodes: int = 0,
+                 select_first_variant: int = 400, policy: str = "MlpPolicy", **dmfd_kwargs: Any):
         if env.spec is None:
             raise ValueError("MAILAgent needs an env made with gym.make (its id and kwargs define the student)")
         kwargs = dict(env.spec.kwargs or {})
@@ -74,6 +82,8 @@ class MAILAgent:
             seed=self.seed)
         self.policy = policy
         self.dmfd_kwargs = dmfd_kwargs
+        self.selector = (BestCheckpoint(env, int(select_episodes), int(select_first_variant), seed=self.seed)
+                         if int(select_episodes) > 0 else None)
         self.mail: MAIL | None = None
         self.stats: dict[str, Any] | None = None
         self.model: Any = None
@@ -123,9 +133,18 @@ class MAILAgent:
             self.model = self._build_student()
             reset_num_timesteps = True
         self.model.learn(total_timesteps, reset_num_timesteps=reset_num_timesteps, **kwargs)
+        if self.selector is not None:
+            self.selector.update(self.model.policy)
         return self
+
+    @property
+    def validation_env_steps(self) -> int:
+        """Env steps of the checkpoint-selection episodes (0 without selection)."""
+        return 0 if self.selector is None else self.selector.env_steps
 
     def predict(self, obs: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True):
         if self.model is None:
             raise RuntimeError("call learn() before predict()")
+        if self.selector is not None:
+            return self.selector.predict(obs, state, episode_start, deterministic)
         return self.model.predict(obs, state, episode_start, deterministic)
