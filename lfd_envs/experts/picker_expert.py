@@ -30,6 +30,11 @@ __all__ = ["Move", "PickerExpert"]
 PHASES = ("approach", "descend", "grasp", "lift", "carry", "lower", "hold", "release", "retreat")
 ONE_SHOT = {"grasp", "release"}
 HOLDING = {"grasp", "lift", "carry", "lower", "hold"}
+#: phases that move a picker down onto something: they also end when the picker is blocked
+#: (a colliding picker resting on a box or on the cloth never reaches a target inside it)
+CONTACT = {"descend", "lower"}
+#: a picker is blocked when its last step covered less than this fraction of the commanded one
+BLOCKED_FRACTION = 0.2
 
 
 @dataclass
@@ -119,6 +124,7 @@ class PickerExpert:
         self._phase_steps = 0
         self._issued = False
         self._carry_alpha = 0.0
+        self._sent: np.ndarray | None = None  # (picker positions, commanded targets) of the last step
 
     @property
     def positions(self) -> np.ndarray:
@@ -129,6 +135,29 @@ class PickerExpert:
     def pickers(self) -> np.ndarray:
         """Picker centres ``(P, 3)``."""
         return np.asarray(self.base.picker_positions, dtype=np.float64)
+
+    @property
+    def _pickers_collide(self) -> bool:
+        return bool(self.base.batch.sim.params.picker_collision)
+
+    def _resting_on_top(self, points: np.ndarray) -> np.ndarray:
+        """``points`` raised to the lowest picker-centre height that touches no free particle.
+
+        A colliding picker (``picker_collision``) sent lower than that squeezes the particles
+        under it against the table and shoots them sideways, out of its grasp radius; resting
+        on top it is within the grasp radius of the particle it touches (the grasp radius of
+        every task exceeds picker radius + particle radius).
+        """
+        params = self.base.batch.sim.params
+        reach = params.picker_radius + params.particle_radius
+        pos = self.positions[self.base.batch.sim.attached[0] < 0]
+        out = np.asarray(points, np.float64).copy()
+        for k, point in enumerate(out):
+            dxy2 = np.sum((pos[:, :2] - point[:2]) ** 2, axis=1)
+            under = dxy2 < reach ** 2
+            if under.any():
+                out[k, 2] = max(point[2], float(np.max(pos[under, 2] + np.sqrt(reach ** 2 - dxy2[under]))))
+        return out
 
     @property
     def steps_left(self) -> int:
@@ -170,6 +199,8 @@ class PickerExpert:
         ws, s = self.workspace, self.schedule
         top = ws.hi[2] - ws.margin
         pick, place = ws.clip(move.pick), ws.clip(move.place)
+        if self._pickers_collide:
+            pick = ws.clip(self._resting_on_top(pick))
         wpt = s.waypoints(pick, place, top)
         approach = pick if self.direct_approach else wpt["above_pick"]
         target = {"approach": approach, "descend": pick, "lift": wpt["lifted"],
@@ -215,6 +246,9 @@ class PickerExpert:
                 done = self._phase_steps >= self._hold_steps()
             else:
                 done = (self._issued if name in ONE_SHOT else gap < self.tolerance) or self._phase_steps >= self.max_phase_steps
+                if not done and name in CONTACT and self._phase_steps > 0:  # reached or stopped by contact
+                    reached = np.abs(target - cur).max(axis=1) < self.tolerance
+                    done = bool(np.all((reached | self._blocked(cur))[move.active]))
             if not done:
                 break
             self._phase += 1
@@ -232,4 +266,15 @@ class PickerExpert:
         action[move.active, 3] = 1.0 if name in HOLDING else -1.0
         self._phase_steps += 1
         self._issued = True
+        self._sent = np.stack([cur, cur + action[:, :3] * reach])
         return action.ravel()
+
+    def _blocked(self, cur: np.ndarray) -> np.ndarray:
+        """Per picker: it covered less than :data:`BLOCKED_FRACTION` of the displacement
+        commanded in the last step (something it pushes on stops it)."""
+        if self._sent is None:
+            return np.zeros(len(cur), dtype=bool)
+        start, commanded = self._sent
+        wanted = np.linalg.norm(commanded - start, axis=1)
+        moved = np.linalg.norm(cur - start, axis=1)
+        return (wanted > self.tolerance) & (moved < BLOCKED_FRACTION * wanted)
