@@ -199,7 +199,7 @@ class PickerExpert:
         ws, s = self.workspace, self.schedule
         top = ws.hi[2] - ws.margin
         pick, place = ws.clip(move.pick), ws.clip(move.place)
-        if self._pickers_collide:
+        if self._pickers_collide and name in ("approach", "descend"):  # before the grasp only
             pick = ws.clip(self._resting_on_top(pick))
         wpt = s.waypoints(pick, place, top)
         approach = pick if self.direct_approach else wpt["above_pick"]
