@@ -28,8 +28,9 @@ from lfd_envs import PARTICLE_ENV_IDS
 #: tolerance (m) of the checks. Contact puts particle centres at their radius (5-12.5 mm) above the
 #: table; an escape (a box pressed through the table, a particle under it) is centimetres.
 TOLERANCE = 1e-3
-#: every particle task once (ClothFoldDiagonal-v0 is the unpinned task under another id)
-PARTICLE_TASKS = tuple(i for i in PARTICLE_ENV_IDS if i != "ClothFoldDiagonal-v0")
+#: every particle task once (ClothFoldDiagonal is the unpinned task under another id), ``-v0``
+#: settings; ``--envs`` takes ``-v1`` ids as well
+PARTICLE_TASKS = tuple(i for i in PARTICLE_ENV_IDS if i.endswith("-v0") and i != "ClothFoldDiagonal-v0")
 
 
 def static_box_depth(positions: np.ndarray, boxes: dict[str, np.ndarray]) -> np.ndarray:

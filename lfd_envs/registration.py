@@ -7,16 +7,20 @@ package first, which registers everything below. Entry points are strings, so im
 
 from __future__ import annotations
 
+import functools
+from typing import Any
+
 import gymnasium as gym
 
 _P = "lfd_envs.tasks"
 _M = "lfd_envs.mujoco"
 
-#: env id -> (entry point, vector entry point or None, default kwargs, max_episode_steps). For the MuJoCo
+#: env id -> (entry point, vector entry point or None, default kwargs, max_episode_steps); entry points
+#: are "module:Class" strings (the ``-v1`` ids: callables, see :func:`make_flex_like`). For the MuJoCo
 #: ids max_episode_steps is the default configuration's horizon; for the particle ids it is the longest
 #: default horizon over the action modes (DryCloth and ThreeBoxes: 75 delta steps; their default
 #: pick_place episodes last 3), see :func:`register_all`.
-ENV_SPECS: dict[str, tuple[str, str | None, dict, int]] = {
+ENV_SPECS: dict[str, tuple[Any, Any, dict, int]] = {
     "StraightenRope-v0": (f"{_P}.rope:StraightenRopeEnv", f"{_P}.rope:StraightenRopeVectorEnv", {}, 75),
     "ClothFold-v0": (f"{_P}.cloth_fold:ClothFoldEnv", f"{_P}.cloth_fold:ClothFoldVectorEnv", {}, 100),
     "ClothFoldDiagonal-v0": (
@@ -38,8 +42,42 @@ ENV_SPECS: dict[str, tuple[str, str | None, dict, int]] = {
     "NistBoardInsert-v0": (f"{_M}.nist:NistBoardInsertEnv", None, {"instruction_encoding": "tokens"}, 100),
 }
 
-PARTICLE_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if v[0].startswith(_P))
-MUJOCO_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if v[0].startswith(_M))
+#: Engine settings of the ``-v1`` particle ids, closer to FleX than the ``-v0`` defaults: pickers
+#: are sphere colliders, the solver takes many small steps of one iteration without tethers
+#: (stiff cloth at 40 per side without long-range attachments), self-collision is rebuilt every
+#: 10 substeps and cloth and rope are 1 cm thick at every resolution. ``sim_options`` given to
+#: ``gymnasium.make`` for a ``-v1`` id are applied on top of these.
+FLEX_LIKE_SIM_OPTIONS: dict = {"substeps": 20, "iterations": 1, "tethers": False, "collision_passes": 0,
+                               "self_collision_interval": 10, "picker_collision": True,
+                               "self_collision_distance": 0.01}
+#: ``-v1`` pick-and-place speed limit (m/s): MAIL's 1 cm per 10 ms frame.
+FLEX_LIKE_PICK_PLACE_SPEED = 1.0
+
+
+def make_flex_like(entry_point: str, **kwargs):
+    """Build the env class at ``entry_point`` (``"module:Class"``) with the ``-v1`` settings:
+    :data:`FLEX_LIKE_SIM_OPTIONS` updated by any ``sim_options`` given, and
+    :data:`FLEX_LIKE_PICK_PLACE_SPEED` unless ``pick_place_speed`` is given."""
+    import importlib
+
+    module, _, name = entry_point.partition(":")
+    cls = getattr(importlib.import_module(module), name)
+    kwargs["sim_options"] = {**FLEX_LIKE_SIM_OPTIONS, **dict(kwargs.get("sim_options") or {})}
+    kwargs.setdefault("pick_place_speed", FLEX_LIKE_PICK_PLACE_SPEED)
+    return cls(**kwargs)
+
+
+def _flex_like(v0: str) -> tuple:
+    entry, vec_entry, kwargs, horizon = ENV_SPECS[v0]
+    return (functools.partial(make_flex_like, entry), functools.partial(make_flex_like, vec_entry), kwargs, horizon)
+
+
+#: ``-v1`` ids: the ``-v0`` particle tasks built by :func:`make_flex_like`
+ENV_SPECS.update({v0.replace("-v0", "-v1"): _flex_like(v0) for v0 in [k for k, v in ENV_SPECS.items()
+                                                                       if v[0].startswith(_P)]})
+
+PARTICLE_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if not isinstance(v[0], str) or v[0].startswith(_P))
+MUJOCO_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if isinstance(v[0], str) and v[0].startswith(_M))
 
 
 def register_all() -> None:
@@ -57,6 +95,7 @@ def register_all() -> None:
     for env_id, (entry, vec_entry, kwargs, horizon) in ENV_SPECS.items():
         if env_id in gym.registry:
             continue
+        kwargs = {k: dict(v) if isinstance(v, dict) else v for k, v in kwargs.items()}  # specs own their dicts
         # Our envs enforce the contract themselves (and pass check_env); Gymnasium's
         # passive checker would only add per-step overhead.
         wrappers = () if vec_entry is not None else (MATCH_HORIZON,)
