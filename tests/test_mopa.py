@@ -276,6 +276,31 @@ def test_mopa_sac_and_td3_run_and_store_k_step_transitions(one_torch_thread):
     assert td3.replay_buffer.reused_added == 0
 
 
+class _Recording(MoPASAC):
+    """MoPA-SAC recording (transitions stored, updates done) after every ``train`` call."""
+
+    def train(self, gradient_steps, batch_size=64):
+        super().train(gradient_steps, batch_size)
+        self.record.append((self.replay_buffer.stored, self._n_updates))
+
+
+def test_update_per_stored_transition_counts_reuse_like_mopa_rl(one_torch_thread):
+    """MoPA-RL's schedule: one gradient step per stored transition (reused sub-segments
+    included) once the warm-up is over; SB3's default: one per decision."""
+    for per_stored in (False, True):
+        env = MoPAWrapper(WallPointEnv(horizon=60), dq_mp=1.0, omega=0.5, range=0.2, time_limit=0.2)
+        model = _Recording("MlpPolicy", env, reuse=5, learning_starts=30, batch_size=16, seed=0, device="cpu",
+                           policy_kwargs={"net_arch": [16, 16]}, update_per_stored=per_stored)
+        model.record = []
+        model.learn(80)
+        stored, updates = np.array(model.record).T
+        assert len(stored) == 80 - 30 and updates[0] == 1  # one call per decision after the warm-up
+        if per_stored:  # every call updates once per transition stored since the previous call
+            assert np.array_equal(np.diff(updates), np.diff(stored)) and np.diff(stored).max() > 1
+        else:
+            assert np.all(np.diff(updates) == 1)
+
+
 # ---------------------------------------------------------------------------------------- exploration
 def _coverage(env, n_steps: int, seed: int, ee_from_obs) -> int:
     """Distinct 2 cm end-effector cells visited (every low-level step) by uniform random actions."""

@@ -110,12 +110,14 @@ class MoPAReplayBuffer(ReplayBuffer):
         self.reuse = int(reuse)
         self.steps = np.ones((self.buffer_size, self.n_envs), dtype=np.float32)
         self.reused_added = 0
+        self.stored = 0  # transitions ever written (reuse included), one per env and step
         self._rng = np.random.default_rng(seed)
 
     def add(self, obs: np.ndarray, next_obs: np.ndarray, action: np.ndarray, reward: np.ndarray,
             done: np.ndarray, infos: list[dict[str, Any]]) -> None:
         self.steps[self.pos] = [max(1, int(info.get("mopa_k", 1))) for info in infos]
         super().add(obs, next_obs, action, np.asarray(reward) * self.reward_scale, done, infos)
+        self.stored += self.n_envs
         if self.reuse > 0:
             for info in infos:
                 traj = info.get("mopa_trajectory")
@@ -128,6 +130,7 @@ class MoPAReplayBuffer(ReplayBuffer):
         super().add(np.asarray(obs)[None], np.asarray(next_obs)[None], np.asarray(action)[None],
                     np.array([reward * self.reward_scale]), np.array([float(done)]), [{}])
         self.reused_added += 1
+        self.stored += 1
 
     def reuse_transitions(self, traj: dict[str, Any]) -> list[tuple]:
         """Up to M transitions (obs, next_obs, action, reward, done, k) from sub-segments of a path.
@@ -209,9 +212,24 @@ class _MoPAAlgorithm:
     algo: ClassVar[str]
 
     def __init__(self, policy, env, *, reward_scale: float = 1.0, reuse: int = 15, seed: int | None = None,
-                 **kwargs: Any) -> None:
+                 update_per_stored: bool = False, **kwargs: Any) -> None:
+        self.update_per_stored = bool(update_per_stored)
+        self._stored_trained: int | None = None
         super().__init__(policy, env, **_mopa_kwargs(kwargs, reward_scale, reuse, seed))
         _sync_gamma(self)
+
+    def train(self, gradient_steps: int, batch_size: int = 64) -> None:
+        """SB3's update; with ``update_per_stored`` one gradient step per transition stored since
+        the previous call, reuse transitions included (MoPA-RL's schedule: a planned action with
+        M reused sub-segments brings up to M + 1 updates; warm-up transitions bring none)."""
+        if self.update_per_stored:
+            stored = self.replay_buffer.stored
+            first = self._stored_trained is None or stored < self._stored_trained  # or a new buffer
+            gradient_steps = 1 if first else stored - self._stored_trained
+            self._stored_trained = stored
+            if gradient_steps <= 0:
+                return
+        super().train(gradient_steps, batch_size)
 
     def set_env(self, env, force_reset: bool = True) -> None:
         super().set_env(env, force_reset)
@@ -231,6 +249,8 @@ class MoPASAC(_MoPAAlgorithm, SAC):
     Args (besides SB3 ``SAC``'s):
         reward_scale: multiplies rewards in the target (2D 0.2, Push 0.8, Lift 0.5, Assembly 1.0).
         reuse: M, sub-segments of each planned path stored as extra transitions (0: ablation).
+        update_per_stored: one gradient step per stored transition, reuse included (MoPA-RL);
+            default False: SB3's ``gradient_steps`` per decision of the policy.
     """
 
     algo = "sac"
