@@ -13,6 +13,10 @@ This class executes moves in both action modes:
 
 Works for any picker count: pickers that a move does not use stay where they are (delta) or
 pick and place in empty air at the top of the workspace (pick_place).
+
+With colliding pickers (``SimParams.picker_collision``, the ``-v1`` ids) a delta-mode picker
+descends only until it rests on top of the particles under its pick point, and a descent or
+lowering also ends when the picker is stopped by what it pushes on (a box top).
 """
 
 from __future__ import annotations
