@@ -243,3 +243,17 @@ def test_held_particles_counts_what_a_picker_holds_not_its_flag():
     assert u.held_particles[0] >= 1
     env.step(np.array([0, 0, 0, -1], np.float32))  # flag off: released
     assert u.held_particles.tolist() == [0]
+
+
+@pytest.mark.parametrize("env_id", ["ClothFoldDiagonalPinned-v0", "ClothFoldDiagonalPinned-v1"])
+def test_pin_block_leaves_the_cloth_unstretched_at_rest(env_id):
+    """The particles the pin block touches are all pinned, so none is pushed out of the block
+    against a pinned neighbour (before: edges up to 238 % stretched at rest, -v0)."""
+    from benchmarks.cloth_bounds import edge_strain
+
+    env = gym.make(env_id, obs_mode="state")
+    for k in (0, 1):
+        env.reset(seed=k, options={"split": "eval", "variant": k})
+        base = env.unwrapped
+        strain, _, _ = edge_strain(base.batch.sim.builders[0], base.particle_positions)
+        assert strain.max() < 0.10, (k, strain.max())

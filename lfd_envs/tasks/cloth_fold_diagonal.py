@@ -7,7 +7,8 @@ had a single variant). One picker (default) starts 0.1 m above the middle of the
 
 * ``pinned=True``: a heavy block (half extents 0.1 x 0.1 x 0.04 m centred at (0.25, 0.25, 0.02),
   as in DMfD: 6 cm stand above the table) presses the cloth near the top-right corner to the
-  table (the particles under it are pinned; the block is also a collider and is rendered).
+  table (the particles it touches, under it or within a particle radius of its sides, are
+  pinned; the block is also a collider and is rendered).
 * ``pinned=False`` (default of ``ClothFoldDiagonal-v0``): the cloth slides freely.
 
 The fold carries the bottom-left corner onto the top-right corner (reflection across the
@@ -181,10 +182,13 @@ class ClothFoldDiagonalTask(ClothTask):
         return self.flat_points(offset, yaw).reshape(-1, n, n, 3)
 
     def _under_block(self, offset: np.ndarray, yaw: float) -> np.ndarray:
-        """Mask ``(n*n,)`` of grid particles under the pin block's footprint."""
+        """Mask ``(n*n,)`` of grid particles that touch the pin block: under its footprint or
+        within a particle radius of its sides. A free particle that overlapped a side would be
+        pushed out of the block at once, stretching its edge to the pinned neighbour."""
         flat = self.flat_grid(offset, yaw)[0]
-        return ((np.abs(flat[..., 0] - BLOCK_CENTER_XY[0]) <= BLOCK_HALF_EXTENTS[0])
-                & (np.abs(flat[..., 1] - BLOCK_CENTER_XY[1]) <= BLOCK_HALF_EXTENTS[1])).ravel()
+        reach = np.asarray(BLOCK_HALF_EXTENTS[:2], float) + self.particle_radius
+        return ((np.abs(flat[..., 0] - BLOCK_CENTER_XY[0]) <= reach[0])
+                & (np.abs(flat[..., 1] - BLOCK_CENTER_XY[1]) <= reach[1])).ravel()
 
     def performance(self, positions: np.ndarray, ctx: Context) -> np.ndarray:
         return -diagonal_edge_distance(self.grid(positions))
