@@ -11,7 +11,10 @@ cannot reach lasts one.
 Usage::
 
     python -m benchmarks.mopa_modes [--env Push2DObstacle-v0] [--steps 20000] [--window 5000]
-        [--learning-starts 100] [--seed 0]
+        [--learning-starts 100] [--seed 0] [--update-per-stored]
+
+``--update-per-stored`` trains with MoPA-RL's schedule (one gradient step per stored transition,
+reused path segments included) instead of SB3's one per decision.
 """
 
 from __future__ import annotations
@@ -22,9 +25,10 @@ import time
 from typing import Any
 
 def mode_rows(env_id: str = "Push2DObstacle-v0", steps: int = 20_000, window: int = 5000, learning_starts: int = 100,
-              seed: int = 0) -> tuple[list[dict[str, Any]], float]:
+              seed: int = 0, update_per_stored: bool = False) -> tuple[list[dict[str, Any]], float]:
     """Per-window rows (decisions, share of each mode, low-level steps per decision, rewarded
-    decisions) of one MoPA-SAC training run, and the final entropy coefficient."""
+    decisions, gradient updates so far) of one MoPA-SAC training run, and the final entropy
+    coefficient."""
     import gymnasium as gym
     from stable_baselines3.common.callbacks import BaseCallback
 
@@ -32,7 +36,8 @@ def mode_rows(env_id: str = "Push2DObstacle-v0", steps: int = 20_000, window: in
     from lfd_agents.mopa import MoPAAgent
     from lfd_agents.mopa.wrapper import MOPA_MODES
 
-    agent = MoPAAgent(gym.make(env_id), seed=seed, learning_starts=learning_starts)
+    agent = MoPAAgent(gym.make(env_id), seed=seed, learning_starts=learning_starts,
+                      update_per_stored=update_per_stored)
     counts: dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
 
     class Record(BaseCallback):
@@ -43,6 +48,7 @@ def mode_rows(env_id: str = "Push2DObstacle-v0", steps: int = 20_000, window: in
             c["decisions"] += 1
             c["low_level"] += int(info["mopa_k"])
             c["rewarded"] += int(float(self.locals["rewards"][0]) > 0)
+            c["updates"] = agent.model._n_updates
             return True
 
     agent.learn(steps, callback=Record())
@@ -52,7 +58,8 @@ def mode_rows(env_id: str = "Push2DObstacle-v0", steps: int = 20_000, window: in
         n = max(c["decisions"], 1)
         rows.append({"steps": f"{w * window}-{(w + 1) * window}", "decisions": c["decisions"],
                      **{m: round(c[m] / n, 3) for m in MOPA_MODES},
-                     "steps_per_decision": round(c["low_level"] / n, 2), "rewarded_decisions": c["rewarded"]})
+                     "steps_per_decision": round(c["low_level"] / n, 2), "rewarded_decisions": c["rewarded"],
+                     "updates_so_far": c["updates"]})
     log_ent = getattr(agent.model, "log_ent_coef", None)
     ent = float(log_ent.detach().exp()) if log_ent is not None else float(agent.model.ent_coef)
     return rows, ent
@@ -65,11 +72,14 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--window", type=int, default=5000, help="low-level steps per row")
     p.add_argument("--learning-starts", type=int, default=100, help="uniform-random warm-up, in decisions")
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--update-per-stored", action="store_true", help="MoPA-RL's update schedule")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
-    rows, ent = mode_rows(args.env, args.steps, args.window, args.learning_starts, args.seed)
+    rows, ent = mode_rows(args.env, args.steps, args.window, args.learning_starts, args.seed, args.update_per_stored)
     keys = list(rows[0]) if rows else []
-    print(f"MoPA-SAC on {args.env}, seed {args.seed}, warm-up {args.learning_starts} decisions, {args.steps} steps\n")
+    schedule = "one update per stored transition" if args.update_per_stored else "one update per decision"
+    print(f"MoPA-SAC on {args.env}, seed {args.seed}, warm-up {args.learning_starts} decisions, {args.steps} steps, "
+          f"{schedule}\n")
     print("| " + " | ".join(keys) + " |\n|" + "---|" * len(keys))
     for r in rows:
         print("| " + " | ".join(str(r[k]) for k in keys) + " |")
