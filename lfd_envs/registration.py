@@ -7,20 +7,16 @@ package first, which registers everything below. Entry points are strings, so im
 
 from __future__ import annotations
 
-import functools
-from typing import Any
-
 import gymnasium as gym
 
 _P = "lfd_envs.tasks"
 _M = "lfd_envs.mujoco"
 
-#: env id -> (entry point, vector entry point or None, default kwargs, max_episode_steps); entry points
-#: are "module:Class" strings (the ``-v1`` ids: callables, see :func:`make_flex_like`). For the MuJoCo
+#: env id -> (entry point, vector entry point or None, default kwargs, max_episode_steps). For the MuJoCo
 #: ids max_episode_steps is the default configuration's horizon; for the particle ids it is the longest
 #: default horizon over the action modes (DryCloth and ThreeBoxes: 75 delta steps; their default
 #: pick_place episodes last 3), see :func:`register_all`.
-ENV_SPECS: dict[str, tuple[Any, Any, dict, int]] = {
+ENV_SPECS: dict[str, tuple[str, str | None, dict, int]] = {
     "StraightenRope-v0": (f"{_P}.rope:StraightenRopeEnv", f"{_P}.rope:StraightenRopeVectorEnv", {}, 75),
     "ClothFold-v0": (f"{_P}.cloth_fold:ClothFoldEnv", f"{_P}.cloth_fold:ClothFoldVectorEnv", {}, 100),
     "ClothFoldDiagonal-v0": (
@@ -54,30 +50,21 @@ FLEX_LIKE_SIM_OPTIONS: dict = {"substeps": 20, "iterations": 1, "tethers": False
 FLEX_LIKE_PICK_PLACE_SPEED = 1.0
 
 
-def make_flex_like(entry_point: str, **kwargs):
-    """Build the env class at ``entry_point`` (``"module:Class"``) with the ``-v1`` settings:
-    :data:`FLEX_LIKE_SIM_OPTIONS` updated by any ``sim_options`` given, and
-    :data:`FLEX_LIKE_PICK_PLACE_SPEED` unless ``pick_place_speed`` is given."""
-    import importlib
-
-    module, _, name = entry_point.partition(":")
-    cls = getattr(importlib.import_module(module), name)
-    kwargs["sim_options"] = {**FLEX_LIKE_SIM_OPTIONS, **dict(kwargs.get("sim_options") or {})}
-    kwargs.setdefault("pick_place_speed", FLEX_LIKE_PICK_PLACE_SPEED)
-    return cls(**kwargs)
+_FLEX = "lfd_envs.flex_like"
 
 
-def _flex_like(v0: str) -> tuple:
+def _flex_like(v0: str) -> tuple[str, str, dict, int]:
     entry, vec_entry, kwargs, horizon = ENV_SPECS[v0]
-    return (functools.partial(make_flex_like, entry), functools.partial(make_flex_like, vec_entry), kwargs, horizon)
+    return f"{_FLEX}:{entry.rpartition(':')[2]}", f"{_FLEX}:{vec_entry.rpartition(':')[2]}", kwargs, horizon
 
 
-#: ``-v1`` ids: the ``-v0`` particle tasks built by :func:`make_flex_like`
-ENV_SPECS.update({v0.replace("-v0", "-v1"): _flex_like(v0) for v0 in [k for k, v in ENV_SPECS.items()
-                                                                       if v[0].startswith(_P)]})
+#: ``-v1`` ids: the ``-v0`` particle tasks, built by :mod:`lfd_envs.flex_like` (string entry points,
+#: so specs serialise, e.g. into Minari datasets)
+_V0_PARTICLE = {k: v for k, v in ENV_SPECS.items() if v[0].startswith(_P)}
+ENV_SPECS.update({v0.replace("-v0", "-v1"): _flex_like(v0) for v0 in _V0_PARTICLE})
 
-PARTICLE_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if not isinstance(v[0], str) or v[0].startswith(_P))
-MUJOCO_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if isinstance(v[0], str) and v[0].startswith(_M))
+PARTICLE_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if v[0].startswith((_P, _FLEX)))
+MUJOCO_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if v[0].startswith(_M))
 
 
 def register_all() -> None:

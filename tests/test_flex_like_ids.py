@@ -44,3 +44,14 @@ def test_bad_options_are_clear_errors():
         gym.make("ClothFold-v1", sim_options={"substeps": 0})
     with pytest.raises(TypeError):
         gym.make("ClothFold-v1", no_such_argument=1)
+
+
+def test_v1_specs_serialise_and_demonstrations_can_be_recorded(tmp_path):
+    """Minari stores the env spec with a dataset: a ``-v1`` spec must serialise (string entry points)."""
+    from lfd_envs import datasets
+
+    assert "lfd_envs.flex_like:" in gym.spec("ClothFold-v1").to_json()
+    path = datasets.collect("ThreeBoxes-v1", 1, tmp_path / "demo", env_kwargs={"action_mode": "pick_place",
+                            "obs_mode": "state"}, seed=0, progress=False)
+    episode = next(iter(datasets.load(path).iterate_episodes()))
+    assert episode.infos["normalized_performance"][-1] > 0.9
