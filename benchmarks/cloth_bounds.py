@@ -113,12 +113,15 @@ def pin_block(version: str, variants: int = 3) -> dict[str, float]:
     return _env_strain("ClothFoldDiagonalPinned-v0", version, variants, lambda env: None, 0.10)
 
 
-def release(version: str) -> dict[str, float]:
+def carry_corner_over(params: Any) -> tuple[Any, np.ndarray]:
+    """A 0.4 m cloth of 20 x 20 particles on the table; one picker grasps a corner, lifts it
+    0.1 m, carries it at 1 cm per frame above the opposite corner, lowers it there and holds it
+    for 10 frames. Returns the engine (still holding) and the picker's final position."""
     from lfd_envs.sim import ParticleSim, SceneBuilder
 
     b = SceneBuilder()
     c = b.add_cloth(20, 20, 0.4, 0.4, center=(0, 0, 0.00625))
-    sim = ParticleSim(b, params=_cloth_params(version), num_pickers=1)
+    sim = ParticleSim(b, params=params, num_pickers=1)
     start = _grasp_point(sim, c.corners[0])
     goal = start + sim.positions[0][c.corners[2]] - sim.positions[0][c.corners[0]]
     sim.set_picker_positions(start[None, None])
@@ -128,6 +131,11 @@ def release(version: str) -> dict[str, float]:
     path += [start + (goal - start) * k / carry + up for k in range(1, carry + 1)]
     path += [goal + up * (1 - k / 10) for k in range(1, 11)] + [goal] * 10
     sim.step_frames(np.array(path)[:, None, None], np.ones((len(path), 1, 1), bool))
+    return sim, goal
+
+
+def release(version: str) -> dict[str, float]:
+    sim, goal = carry_corner_over(_cloth_params(version))
     held = float((sim.attached[0] >= 0).sum())
     before = sim.positions[0].astype(np.float64)
     sim.step(goal[None, None], np.zeros((1, 1), bool))

@@ -187,18 +187,9 @@ def test_rope_lifted_by_one_end_keeps_its_length():
 def _diagonal_fold_release(relaxation: int) -> tuple[float, float]:
     """One picker carries a corner of a 20x20 cloth onto the opposite corner, holds, releases.
     Returns the max particle speed before the release and in the frame after it."""
-    b = SceneBuilder()
-    c = b.add_cloth(20, 20, 0.4, 0.4, center=(0, 0, 0.00625))
-    sim = ParticleSim(b, params=SimParams(release_relaxation=relaxation), num_pickers=1)
-    q0 = sim.positions[0].astype(np.float64)
-    start, goal = q0[c.corners[0]], q0[c.corners[2]]
-    sim.set_picker_positions(start[None, None])
-    up = np.array([0.0, 0.0, 0.1])
-    carry = int(np.ceil(np.linalg.norm(goal - start) / 0.01))
-    path = [start + up * k / 10 for k in range(1, 11)]
-    path += [start + (goal - start) * k / carry + up for k in range(1, carry + 1)]
-    path += [goal + up * (1 - k / 10) for k in range(1, 11)] + [goal] * 10
-    sim.step_frames(np.array(path)[:, None, None], np.ones((len(path), 1, 1), bool))
+    from benchmarks.cloth_bounds import carry_corner_over
+
+    sim, goal = carry_corner_over(SimParams(release_relaxation=relaxation))
     before = float(np.linalg.norm(sim.velocities[0], axis=1).max())
     sim.step(goal[None, None], np.zeros((1, 1), bool))  # release, picker at rest
     return before, float(np.linalg.norm(sim.velocities[0], axis=1).max())
