@@ -12,7 +12,7 @@ from __future__ import annotations
 import importlib
 from typing import Any, Callable
 
-from lfd_envs.registration import _V0_PARTICLE, FLEX_LIKE_PICK_PLACE_SPEED, FLEX_LIKE_SIM_OPTIONS
+from lfd_envs.registration import FLEX_LIKE_PICK_PLACE_SPEED, FLEX_LIKE_SIM_OPTIONS, V0_PARTICLE_SPECS
 
 __all__ = ["make_flex_like"]
 
@@ -35,7 +35,7 @@ def _constructor(entry_point: str) -> Callable[..., Any]:
     return make
 
 
-for _entry, _vec_entry, _, _ in _V0_PARTICLE.values():
+for _entry, _vec_entry, _, _ in V0_PARTICLE_SPECS.values():
     for _ep in (_entry, _vec_entry):
         globals()[_ep.rpartition(":")[2]] = _constructor(_ep)
         __all__.append(_ep.rpartition(":")[2])
