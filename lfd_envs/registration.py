@@ -58,10 +58,10 @@ def _flex_like(v0: str) -> tuple[str, str, dict, int]:
     return f"{_FLEX}:{entry.rpartition(':')[2]}", f"{_FLEX}:{vec_entry.rpartition(':')[2]}", kwargs, horizon
 
 
-#: ``-v1`` ids: the ``-v0`` particle tasks, built by :mod:`lfd_envs.flex_like` (string entry points,
-#: so specs serialise, e.g. into Minari datasets)
 #: the ``-v0`` particle-task specs (their ``-v1`` twins are built from them)
 V0_PARTICLE_SPECS = {k: v for k, v in ENV_SPECS.items() if v[0].startswith(_P)}
+#: ``-v1`` ids: the ``-v0`` particle tasks, built by :mod:`lfd_envs.flex_like` (string entry points,
+#: so specs serialise, e.g. into Minari datasets)
 ENV_SPECS.update({v0.replace("-v0", "-v1"): _flex_like(v0) for v0 in V0_PARTICLE_SPECS})
 
 PARTICLE_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if v[0].startswith((_P, _FLEX)))
