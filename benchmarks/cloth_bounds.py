@@ -14,12 +14,12 @@ against their rest length.
   edges stretched more than 20 % at the end (mean per episode) and the worst edge.
 * ``pin block``: ClothFoldDiagonalPinned right after reset (eval variants 0..2; the block holds a
   corner region of the cloth): edges stretched more than 10 % and the worst edge.
-
-A colliding picker grasps from on top of the particle (as the scripted experts do), the others
-at the particle.
 * ``release``: one picker carries a corner of a 0.4 m cloth of 20 x 20 particles onto the opposite
   corner at 1 cm per frame, holds it and lets go: the largest particle displacement in the frame
   after the release (mm).
+
+A colliding picker grasps from on top of the particle (as the scripted experts do), the others
+at the particle.
 """
 
 from __future__ import annotations

@@ -20,13 +20,16 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from lfd_envs.core.errors import check_float
+
 __all__ = ["PerformanceReward", "performance_rewards"]
 
 
 def _check_scale(scale: Any) -> float:
-    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not np.isfinite(scale) or scale <= 0:
-        raise ValueError(f"scale must be a finite number > 0, got {scale!r}")
-    return float(scale)
+    value = check_float("scale", scale, 0.0)
+    if value == 0.0:
+        raise ValueError(f"scale must be > 0, got {scale!r}")
+    return value
 
 
 class PerformanceReward(gym.Wrapper):
