@@ -50,6 +50,7 @@ import numpy as np
 import torch as th
 import torch.nn.functional as F
 from torch import nn
+from torch.optim.swa_utils import AveragedModel, get_ema_multi_avg_fn
 
 from lfd_agents.augment import random_shift
 from lfd_agents.threads import torch_threads
@@ -279,6 +280,11 @@ class NistBC:
         train_tasks: instructions of the collected demonstrations (default: the thesis' two).
         batch_size, learning_rate: optimiser settings (AdamW).
         augment: random shifts (±2 px) and brightness jitter of training images.
+        lr_decay_steps: when set, the learning rate follows a cosine from ``learning_rate`` to 0
+            over this many gradient steps (counted across :meth:`learn` calls) and stays at 0
+            after; None keeps it constant.
+        ema_decay: when set, an exponential moving average of the weights (this decay per
+            gradient step) is kept and used for acting and saved; None acts with the raw weights.
         d_model, n_layers: Transformer width and depth.
         expert_kwargs: passed to the expert (e.g. ``recovery_prob``).
         seed: seeds torch, the batch sampler and demonstration collection.
@@ -292,6 +298,7 @@ class NistBC:
                  policy_image_size: tuple[int, int] | None = None,
                  train_tasks: Sequence[str] | None = None, batch_size: int = 32, learning_rate: float = 1e-3,
                  augment: bool = True, d_model: int = 64, n_layers: int = 2,
+                 lr_decay_steps: int | None = None, ema_decay: float | None = None,
                  expert_kwargs: dict[str, Any] | None = None, seed: int = 0, device: str = "cpu",
                  num_threads: int | None = 1, verbose: int = 0) -> None:
         from lfd_envs.mujoco.nist import TRAIN_TASKS
@@ -304,12 +311,18 @@ class NistBC:
             raise ValueError(f"history must be >= 1, got {history}")
         if e.obs_mode == "state":
             raise ValueError("NistBC needs image observations (obs_mode 'image' or 'state+image')")
+        if lr_decay_steps is not None and int(lr_decay_steps) < 1:
+            raise ValueError(f"lr_decay_steps must be >= 1 or None, got {lr_decay_steps}")
+        if ema_decay is not None and not 0.0 < float(ema_decay) < 1.0:
+            raise ValueError(f"ema_decay must be in (0, 1) or None, got {ema_decay}")
         self.env = env
         self.config = {
             "history": int(history), "cameras": cams, "n_demos": int(n_demos),
             "train_tasks": tuple(train_tasks or TRAIN_TASKS), "batch_size": int(batch_size),
             "learning_rate": float(learning_rate), "augment": bool(augment), "d_model": int(d_model),
-            "n_layers": int(n_layers), "seed": int(seed), "expert_kwargs": dict(expert_kwargs or {}),
+            "n_layers": int(n_layers), "seed": int(seed),
+            "lr_decay_steps": None if lr_decay_steps is None else int(lr_decay_steps),
+            "ema_decay": None if ema_decay is None else float(ema_decay), "expert_kwargs": dict(expert_kwargs or {}),
             "n_bins": int(e.num_bins), "action_mode": e.action_mode, "image_size": tuple(e.image_size),
             "policy_image_size": tuple(int(v) for v in (policy_image_size or e.image_size)),
             "instruction_buckets": 512,
@@ -322,6 +335,10 @@ class NistBC:
                                 d_model=int(d_model),
                                 n_layers=int(n_layers), instruction_buckets=512).to(self.device)
         self.optimizer = th.optim.AdamW(self.policy.parameters(), lr=float(learning_rate), weight_decay=1e-4)
+        self.ema = None
+        if ema_decay is not None:
+            self.ema = AveragedModel(self.policy, multi_avg_fn=get_ema_multi_avg_fn(float(ema_decay)),
+                                     use_buffers=True)
         self._rng = np.random.default_rng(int(seed))
         self._demonstrations = demonstrations
         self._data: dict[str, Any] | None = None
@@ -427,6 +444,7 @@ class NistBC:
             total_timesteps = int(np.ceil(float(epochs) * n / bs))
         self.policy.train()
         for step in range(int(total_timesteps)):
+            self._set_learning_rate()
             idx = self._rng.integers(n, size=bs)
             hist = th.from_numpy(data["history"][idx])
             images = self._image_batch([data["frames"][c][hist] for c in self.config["cameras"]],
@@ -437,11 +455,28 @@ class NistBC:
             self.optimizer.zero_grad(set_to_none=True)
             loss.backward()
             self.optimizer.step()
+            if self.ema is not None:
+                self.ema.update_parameters(self.policy)
             self.num_timesteps += 1
             if self.verbose and (step % 100 == 0 or step == total_timesteps - 1):
                 print(f"NistBC step {self.num_timesteps}: loss {loss.item():.4f}")
         self.last_loss = float(loss.item()) if int(total_timesteps) > 0 else float("nan")
         return self
+
+    def _set_learning_rate(self) -> None:
+        """Cosine decay of the learning rate over ``lr_decay_steps`` gradient steps (if set)."""
+        horizon = self.config["lr_decay_steps"]
+        if horizon is None:
+            return
+        progress = min(self.num_timesteps / horizon, 1.0)
+        lr = 0.5 * self.config["learning_rate"] * (1.0 + np.cos(np.pi * progress))
+        for group in self.optimizer.param_groups:
+            group["lr"] = lr
+
+    @property
+    def acting_policy(self) -> nn.Module:
+        """The network used to act: the weight average when ``ema_decay`` is set, else the policy."""
+        return self.policy if self.ema is None else self.ema.module
 
     # ------------------------------------------------------------------ acting
     def reset(self) -> None:
@@ -465,9 +500,10 @@ class NistBC:
         instr = observation["instruction"]
         instr = instr[0] if not isinstance(instr, str) else instr
         ids, offsets = self._instruction_batch([instruction_ids(instr, self.config["instruction_buckets"])])
-        self.policy.eval()
+        policy = self.acting_policy
+        policy.eval()
         with th.no_grad(), torch_threads(self.num_threads):
-            logits = self.policy(self._image_batch(per_camera, augment=False), ids, offsets)[0]
+            logits = policy(self._image_batch(per_camera, augment=False), ids, offsets)[0]
         if deterministic:
             bins = logits.argmax(-1)
         else:
@@ -479,6 +515,7 @@ class NistBC:
         """Save the network, optimiser and config (not the demonstrations)."""
         th.save({"config": self.config, "policy": self.policy.state_dict(),
                  "optimizer": self.optimizer.state_dict(), "num_timesteps": self.num_timesteps,
+                 "ema": None if self.ema is None else self.ema.state_dict(),
                  "num_threads": self.num_threads}, str(path))
 
     @classmethod
@@ -494,10 +531,13 @@ class NistBC:
                     policy_image_size=cfg.get("policy_image_size"),
                     train_tasks=cfg["train_tasks"], batch_size=cfg["batch_size"], learning_rate=cfg["learning_rate"],
                     augment=cfg["augment"], d_model=cfg["d_model"], n_layers=cfg["n_layers"],
+                    lr_decay_steps=cfg.get("lr_decay_steps"), ema_decay=cfg.get("ema_decay"),
                     expert_kwargs=cfg["expert_kwargs"], seed=cfg["seed"], device=device)
         agent.num_threads = ckpt.get("num_threads", agent.num_threads)
         agent.policy.load_state_dict(ckpt["policy"])
         agent.optimizer.load_state_dict(ckpt["optimizer"])
+        if agent.ema is not None and ckpt.get("ema") is not None:
+            agent.ema.load_state_dict(ckpt["ema"])
         agent.num_timesteps = int(ckpt["num_timesteps"])
         return agent
 

@@ -73,3 +73,27 @@ def test_learns_from_minari_dataset(tmp_path):
     env = NistBoardInsertEnv(image_size=(24, 32))
     agent = NistBC(env, path, seed=0).learn(total_timesteps=2)
     assert np.isfinite(agent.last_loss)
+
+
+def test_cosine_schedule_and_weight_average(demos, tmp_path):
+    env = NistBoardInsertEnv(image_size=SIZE)
+    with pytest.raises(ValueError, match="ema_decay"):
+        NistBC(env, ema_decay=1.0)
+    with pytest.raises(ValueError, match="lr_decay_steps"):
+        NistBC(env, lr_decay_steps=0)
+    agent = NistBC(env, demos[:2], seed=0, policy_image_size=(16, 20), learning_rate=1e-3,
+                   lr_decay_steps=4, ema_decay=0.5)
+    agent.learn(total_timesteps=3)  # the third step (index 2) is half-way through the cosine
+    assert agent.optimizer.param_groups[0]["lr"] == pytest.approx(0.5e-3)
+    agent.learn(total_timesteps=3, reset_num_timesteps=False)
+    assert agent.optimizer.param_groups[0]["lr"] == 0.0  # past the horizon: stays at 0
+    # the average lags the raw weights and is what acts
+    raw = dict(agent.policy.named_parameters())
+    avg = dict(agent.acting_policy.named_parameters())
+    assert agent.acting_policy is not agent.policy
+    assert any(not np.allclose(raw[k].detach(), avg[k].detach()) for k in raw)
+    path = tmp_path / "bc.pt"
+    agent.save(path)
+    loaded = NistBC.load(path, env)
+    for k, v in loaded.acting_policy.state_dict().items():
+        assert np.array_equal(v.numpy(), agent.acting_policy.state_dict()[k].numpy()), k
