@@ -18,7 +18,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Iterator
 
 import numpy as np
@@ -107,8 +107,16 @@ TABLE_HEADER = ("| task | pickers | action mode | mean p̂ | std | min | target 
 
 
 def select_rows(tasks: set[str] | None = None, modes: set[str] | None = None) -> list[Row]:
-    """The rows of :data:`ROWS` of ``tasks`` (env ids) and action ``modes`` (all when None/empty)."""
-    return [r for r in ROWS if (not tasks or r.env_id in tasks) and (not modes or r.action_mode in modes)]
+    """The rows of :data:`ROWS` of ``tasks`` (env ids) and action ``modes`` (all when None/empty).
+
+    Another version of a listed task (``ClothFold-v1``) gets the rows of its ``-v0`` id.
+    """
+    rows = list(ROWS)
+    for task in sorted(tasks or ()):
+        base = task.rsplit("-v", 1)[0] + "-v0"
+        if task != base:
+            rows += [replace(r, env_id=task) for r in ROWS if r.env_id == base]
+    return [r for r in rows if (not tasks or r.env_id in tasks) and (not modes or r.action_mode in modes)]
 
 
 def expert_results(rows: list[Row], variants: int, resolution: int | None = None,

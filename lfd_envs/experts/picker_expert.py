@@ -235,7 +235,7 @@ class PickerExpert:
                 if self._move is None:
                     return action.ravel()
             name = PHASES[self._phase]
-            if name == "approach" or (self.track_place and name in ("lift", "carry")):
+            if name == "approach" or (self.track_place and name in ("lift", "carry") and self._carry_alpha < 1.0):
                 self._move = self.retarget(self._move)
             move = self._move
             if name != "carry":
