@@ -8,7 +8,10 @@ released there, the cloth falls over the plank and hangs on both sides.
 One picker: (1) the middle of the plank-side edge goes 0.12 m past the plank, 0.55 m high (the
 cloth hangs over the plank, bunched along it); (2, 3) the two corners of the opposite edge,
 which hang on the near side, are pulled apart along the plank (0.2 m either side of the middle,
-0.04 m in front of the plank, 0.26 m high) to spread the cloth. In delta mode the moves are executed by the closed-loop state
+0.04 m in front of the plank, 0.26 m high) to spread the cloth. With FleX-like physics
+(colliding pickers, the stiff small-step cloth; the ``-v1`` ids) one picker makes move (1)
+only, 0.2 m past the plank: the stiff cloth hangs spread by itself, and pulling its corners
+drags it off the plank. In delta mode the moves are executed by the closed-loop state
 machine of :class:`~lfd_envs.experts.picker_expert.PickerExpert` while the horizon lasts.
 """
 
@@ -25,6 +28,8 @@ TEACHER_PLACE = (0.1, 0.55)
 #: single picker: the edge middle goes here, then the opposite corners are spread here
 SINGLE_OVER = (0.12, 0.55)
 SINGLE_SPREAD = (-0.04, 0.26)
+#: single picker with FleX-like physics: the edge middle goes here, and that is the only move
+FLEX_LIKE_SINGLE_OVER = (0.2, 0.55)
 #: particles lower than this are picked with the picker at its lowest height
 GROUND = 0.03
 #: single picker: the opposite corners are pulled this far (m) along the plank from the middle
@@ -66,10 +71,13 @@ class DryClothExpert(PickerExpert):
             rows = np.round(frac * (n - 1)).astype(int)
             places = np.stack([task.far_side_point(ctx, mid + sign * (f - 0.5) * side, *TEACHER_PLACE) for f in frac])
             return [(task.grid_index(rows, 0), places)]
+        middle = task.grid_index(np.array([n // 2]), 0)
+        if self._pickers_collide:
+            return [(middle, task.far_side_point(ctx, mid, *FLEX_LIKE_SINGLE_OVER)[None])]
         over = task.far_side_point(ctx, mid, *SINGLE_OVER)[None]
         low = task.far_side_point(ctx, mid - sign * SPREAD_HALF_WIDTH, *SINGLE_SPREAD)[None]
         high = task.far_side_point(ctx, mid + sign * SPREAD_HALF_WIDTH, *SINGLE_SPREAD)[None]
-        return [(task.grid_index(np.array([n // 2]), 0), over),
+        return [(middle, over),
                 (task.grid_index(np.array([0]), n - 1), low),
                 (task.grid_index(np.array([n - 1]), n - 1), high)]
 
