@@ -66,7 +66,8 @@ def test_particles_inside_a_sunk_static_box_leave_above_the_table():
 
 
 @pytest.mark.parametrize("env_id", ["StraightenRope-v0", "ClothFold-v0", "ClothFoldDiagonalPinned-v0",
-                                    "ClothFoldDiagonalUnpinned-v0", "DryCloth-v0", "ThreeBoxes-v0"])
+                                    "ClothFoldDiagonalUnpinned-v0", "DryCloth-v0", "ThreeBoxes-v0",
+                                    "StraightenRope-v1", "ThreeBoxes-v1"])
 def test_random_delta_actions_never_escape(env_id):
     r = check_task(env_id, steps=240, worlds=3, seed=1)
     assert r["frames"] >= 240  # every frame of every world checked

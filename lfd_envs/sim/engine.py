@@ -126,6 +126,8 @@ class ParticleSim:
         self._q_prev = zeros(W * N, wp.vec3)
         self._q_snap = zeros(W * N, wp.vec3)
         self._fric = zeros(W * N, wp.vec3)
+        self._picker_push = zeros(W * N, wp.vec3)  # picker pushes of each particle, per substep
+        self._pusher = zeros(W * N, wp.int32)
         self._inv_mass = zeros(W * N, wp.float32)
         self._attach = wp.full(W * N, -1, dtype=wp.int32, device=dev)
         self._attach_off = zeros(W * N, wp.vec3)
@@ -159,6 +161,8 @@ class ParticleSim:
         self._box_rot = zeros(W * B, wp.mat33)
         self._box_he = zeros(W * B, wp.vec3)
         self._box_kin = zeros(W * B, wp.int32)
+        self._box_push = zeros(W * B, wp.vec3)  # pushes of each box out of pickers and the table, per substep
+        self._box_pusher_v = zeros(W * B, wp.vec3)  # velocity of what pushed it last
         self._sbox_pos = zeros(W * S, wp.vec3)
         self._sbox_rot = zeros(W * S, wp.mat33)
         self._sbox_he = zeros(W * S, wp.vec3)
@@ -177,6 +181,7 @@ class ParticleSim:
         self._pick_start = zeros(W * P, wp.vec3)
         self._pick_end = zeros(W * P, wp.vec3)
         self._pick_now = zeros(W * P, wp.vec3)  # picker centres at the current substep (colliders)
+        self._pick_vel = zeros(W * P, wp.vec3)  # picker velocities during the current frame
         self._events = zeros(W * P, wp.int32)
         self._relax_flags = zeros(W, wp.int32)
         self._picker_pos = np.zeros((W, P, 3), np.float64)
@@ -537,12 +542,17 @@ class ParticleSim:
             alpha = (s + 1) / p.substeps
             if P and p.picker_collision:
                 wp.launch(K.picker_substep_positions, dim=W * P, device=dev,
-                          inputs=[self._pick_start, self._pick_end, alpha, self._pick_now])
+                          inputs=[self._pick_start, self._pick_end, alpha, 1.0 / p.frame_dt, self._pick_now,
+                                  self._pick_vel])
             wp.launch(K.predict, dim=self._dim(W * N), device=dev,
                       inputs=[q, self._q_prev, self.particle_v, self._inv_mass, self._attach,
                               self._attach_off, self._pick_start, self._pick_end, self._fric,
                               self._w_eff, N, max(P, 1), alpha, p.gravity, h, damp, p.max_speed,
                               W * N, self._chunk(W * N)])
+            if P and p.picker_collision:  # clear the contact-push accumulators (see K.ContactPushes)
+                self._picker_push.zero_()
+                if B:
+                    self._box_push.zero_()
             if sc_on and s % p.self_collision_interval == 0:
                 self._build_neighbors()
             self._reset_multipliers()
@@ -554,13 +564,14 @@ class ParticleSim:
                               inputs=[q, self._rest, self._inv_mass, self._attach,
                                       self._rigid_start, self._rigid_count, N, B,
                                       p.rigid_weight_kinematic, self._box_quat, self._box_pos,
-                                      self._box_rot, self._box_kin, self._box_he, self._picker_spheres])
+                                      self._box_rot, self._box_kin, self._box_he, self._picker_spheres,
+                                      self._box_push, self._box_pusher_v])
             for _ in range(p.collision_passes if sc_on else 0):
                 self._particle_pass(sc_on)
             wp.launch(K.update_velocity, dim=self._dim(W * N), device=dev,
                       inputs=[q, self._q_prev, self.particle_v, self._inv_mass, self._attach,
                               self._fric, 1.0 / h, p.static_friction, p.dynamic_friction,
-                              p.max_speed, W * N, self._chunk(W * N)])
+                              p.max_speed, self._picker_spheres, self._contact_pushes, W * N, self._chunk(W * N)])
 
     def _build_neighbors(self) -> None:
         """Rebuild the self-collision hash grid and neighbour lists from the current positions."""
@@ -615,6 +626,7 @@ class ParticleSim:
         particles.positions, particles.snapshot, particles.substep_start = self.particle_q, self._q_snap, self._q_prev
         particles.inverse_mass, particles.attached_picker = self._w_eff, self._attach
         particles.radius, particles.friction_displacement = self._radius, self._fric
+        particles.picker_push, particles.pusher = self._picker_push, self._pusher
         collision = K.SelfCollision()
         collision.radius = self._sc_r
         collision.relaxation = p.self_collision_relaxation
@@ -631,7 +643,7 @@ class ParticleSim:
         static_boxes.position, static_boxes.rotation = self._sbox_pos, self._sbox_rot
         static_boxes.half_extents = self._sbox_he
         pickers = K.PickerSpheres()
-        pickers.pickers_per_world, pickers.position = self._P, self._pick_now
+        pickers.pickers_per_world, pickers.position, pickers.velocity = self._P, self._pick_now, self._pick_vel
         pickers.radius, pickers.enabled = p.picker_radius, int(p.picker_collision and self._P > 0)
         return particles, collision, tethers, boxes, static_boxes, pickers
 
@@ -943,6 +955,17 @@ class ParticleSim:
         W, N = self._W, self._N
         z = self.particle_q.numpy()[: W * N].reshape(W, N, 3)[..., 2]
         return (z - self._radius.numpy()[: W * N].reshape(W, N)).astype(np.float64)
+
+    @property
+    def _contact_pushes(self) -> Any:
+        """The contact-push accumulators read by :func:`kernels.update_velocity`."""
+        if getattr(self, "_pushes", None) is None:
+            pushes = K.ContactPushes()
+            pushes.particles_per_world, pushes.boxes_per_world = self._N, self._B
+            pushes.box_of_particle, pushes.particle_push, pushes.pusher = self._box_of, self._picker_push, self._pusher
+            pushes.box_push, pushes.box_pusher_velocity = self._box_push, self._box_pusher_v
+            self._pushes = pushes
+        return self._pushes
 
     @property
     def _picker_spheres(self) -> Any:

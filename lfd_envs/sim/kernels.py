@@ -499,6 +499,8 @@ class ParticleArrays:
     attached_picker: wp.array(dtype=wp.int32)  # -1 when free
     radius: wp.array(dtype=float)  # contact radius against boxes and the ground
     friction_displacement: wp.array(dtype=wp.vec3)  # accumulated contact corrections
+    picker_push: wp.array(dtype=wp.vec3)  # accumulated picker-sphere pushes of the substep
+    pusher: wp.array(dtype=wp.int32)  # the picker (in its world) that pushed last
 
 
 @wp.struct
@@ -552,16 +554,19 @@ class PickerSpheres:
 
     pickers_per_world: int
     position: wp.array(dtype=wp.vec3)
+    velocity: wp.array(dtype=wp.vec3)  # picker velocities during the current frame (m/s)
     radius: float
     enabled: int
 
 
 @wp.kernel
 def picker_substep_positions(start: wp.array(dtype=wp.vec3), end: wp.array(dtype=wp.vec3), alpha: float,
-                             out: wp.array(dtype=wp.vec3)):
-    """Picker centres at the end of a substep (the same interpolation as :func:`predict`)."""
+                             inv_frame_dt: float, out: wp.array(dtype=wp.vec3), velocity: wp.array(dtype=wp.vec3)):
+    """Picker centres at the end of a substep (the same interpolation as :func:`predict`) and
+    their velocities during the frame."""
     k = wp.tid()
     out[k] = wp.lerp(start[k], end[k], alpha)
+    velocity[k] = (end[k] - start[k]) * inv_frame_dt
 
 
 @wp.func
@@ -687,7 +692,11 @@ def solve_particles(
                         x = xn
             if pickers.enabled != 0:
                 for p in range(pickers.pickers_per_world):
-                    x = push_out_of_sphere(x, r, pickers.position[w * pickers.pickers_per_world + p], pickers.radius)
+                    xn = push_out_of_sphere(x, r, pickers.position[w * pickers.pickers_per_world + p], pickers.radius)
+                    if xn[0] != x[0] or xn[1] != x[1] or xn[2] != x[2]:
+                        particles.picker_push[i] = particles.picker_push[i] + (xn - x)
+                        particles.pusher[i] = p
+                    x = xn
         # ground and static boxes
         if x[2] < r:
             x = wp.vec3(x[0], x[1], r)
@@ -722,13 +731,18 @@ def shape_match(
     box_kin: wp.array(dtype=wp.int32),
     box_he: wp.array(dtype=wp.vec3),
     pickers: PickerSpheres,
+    box_push: wp.array(dtype=wp.vec3),
+    box_pusher_velocity: wp.array(dtype=wp.vec3),
 ):
     """Shape matching of one rigid box (one thread per world x box): best rigid transform of the
     rest shape onto the current particles (grasped/pinned particles weigh ``kin_weight``), then
     free particles are moved onto the rigid shape.  Rotation by warm-started iterative extraction
     (Mueller et al. 2016) so it is smooth and deterministic.  With colliding pickers, a box that
     nothing holds is then pushed as a whole out of every picker sphere (sphere against the box's
-    faces, so a picker cannot slip between its surface particles)."""
+    faces, so a picker cannot slip between its surface particles); ``box_push`` accumulates the
+    translations of the substep that pushed the box out of pickers and of the table, and
+    ``box_pusher_velocity`` is the velocity of what pushed last (zero: the table), for
+    :func:`update_velocity`.  Last, a free box is lifted out of the table if it entered it."""
     kb = wp.tid()
     w = kb // num_boxes
     b = kb - w * num_boxes
@@ -773,6 +787,14 @@ def shape_match(
             break
         qt = wp.normalize(wp.quat_from_axis_angle(om / wl, wl) * qt)
     R = wp.quat_to_matrix(qt)
+    if pickers.enabled != 0 and kin == 0:  # pickers first: the table, immovable, has the last word
+        for p in range(pickers.pickers_per_world):
+            kp = w * pickers.pickers_per_world + p
+            t = sphere_push_on_box(pickers.position[kp], pickers.radius, c - R * c0, R, box_he[kb])
+            if t[0] != 0.0 or t[1] != 0.0 or t[2] != 0.0:
+                c = c + t
+                box_push[kb] = box_push[kb] + t
+                box_pusher_velocity[kb] = pickers.velocity[kp]
     if kin == 0:
         # a free box hitting the table fast (dropped, tumbling) would end the iteration with a
         # corner below it: lift the whole box so that no particle centre is under the table top
@@ -780,10 +802,9 @@ def shape_match(
         for k in range(n):
             lift = wp.max(lift, -(c + R * (rest[start + k] - c0))[2])
         c = c + wp.vec3(0.0, 0.0, lift)
-    if pickers.enabled != 0 and kin == 0:
-        for p in range(pickers.pickers_per_world):
-            c = c + sphere_push_on_box(pickers.position[w * pickers.pickers_per_world + p], pickers.radius,
-                                       c - R * c0, R, box_he[kb])
+        if lift > 0.0 and pickers.enabled != 0:
+            box_push[kb] = box_push[kb] + wp.vec3(0.0, 0.0, lift)
+            box_pusher_velocity[kb] = wp.vec3(0.0, 0.0, 0.0)
     box_quat[kb] = qt
     box_rot[kb] = R
     box_kin[kb] = kin
@@ -795,6 +816,21 @@ def shape_match(
 
 
 # ----------------------------------------------------------------------------- substep end
+@wp.struct
+class ContactPushes:
+    """What colliding pickers (and the table, for boxes) pushed in the current substep, for
+    :func:`update_velocity`; accumulated by :func:`solve_particles` and :func:`shape_match`,
+    cleared at every substep start."""
+
+    particles_per_world: int
+    boxes_per_world: int
+    box_of_particle: wp.array(dtype=wp.int32)  # per particle of a world: its box, -1 if none
+    particle_push: wp.array(dtype=wp.vec3)  # sum of the picker-sphere pushes of each particle (m)
+    pusher: wp.array(dtype=wp.int32)  # the picker (in its world) that pushed a particle last
+    box_push: wp.array(dtype=wp.vec3)  # sum of the translations of each box out of pickers / the table
+    box_pusher_velocity: wp.array(dtype=wp.vec3)  # velocity of what pushed a box last (table: 0)
+
+
 @wp.kernel
 def update_velocity(
     q: wp.array(dtype=wp.vec3),
@@ -807,12 +843,24 @@ def update_velocity(
     mu_s: float,
     mu_k: float,
     max_speed: float,
+    pickers: PickerSpheres,
+    pushes: ContactPushes,
     total: int,
     chunk: int,
 ):
     """Substep end: velocities from the position change, with the accumulated contact corrections
     applied as Coulomb friction (``mu_s``/``mu_k``), clamped to ``max_speed``; pinned particles
-    get zero velocity."""
+    get zero velocity.
+
+    With colliding pickers (the FleX-like settings) the contacts of what a picker pushed in the
+    substep are inelastic: for a particle, the normal part of all its contact corrections (the
+    picker's, the table's, ...) does not become velocity beyond the picker's; for a free box,
+    the same holds for its push as a whole out of pickers and the table
+    (:func:`inelastic_push`). A contact projection left alone becomes a velocity ``correction /
+    substep_dt``: a particle squeezed between a picker and the table, or left inside a picker
+    by a release, is moved centimetres in one substep and shot away at metres per second.
+    (Made inelastic everywhere, the table's contacts let a rope tangle into a self-sustaining
+    whirl of 5-10 m/s under random actions; they keep the plain projection.)"""
     tid = wp.tid()
     for i in range(tid * chunk, wp.min(tid * chunk + chunk, total)):
         att = attach[i]
@@ -823,21 +871,47 @@ def update_velocity(
         if att < 0:
             f = fric[i]
             fl = wp.length(f)
+            w = i // pushes.particles_per_world
             if fl > 1.0e-12:
                 n = f / fl
                 dvn = fl * inv_dt
                 vn = wp.dot(vi, n)
                 vt = vi - vn * n
+                if pickers.enabled != 0 and wp.length(pushes.particle_push[i]) > 0.0:
+                    # pushed by a picker: inelastic, at least and at most as fast as the picker
+                    pusher = pickers.velocity[w * pickers.pickers_per_world + pushes.pusher[i]]
+                    vn = wp.max(vn - dvn, wp.dot(pusher, n))
                 vtl = wp.length(vt)
                 if vtl <= mu_s * dvn:
                     vt = wp.vec3(0.0, 0.0, 0.0)
                 else:
                     vt = vt * wp.max(0.0, 1.0 - mu_k * dvn / vtl)
                 vi = vn * n + vt
+            if pickers.enabled != 0:
+                b = pushes.box_of_particle[i - w * pushes.particles_per_world]
+                if b >= 0:
+                    kb = w * pushes.boxes_per_world + b
+                    vi = inelastic_push(vi, pushes.box_push[kb], inv_dt, pushes.box_pusher_velocity[kb])
         s = wp.length(vi)
         if s > max_speed:
             vi = vi * (max_speed / s)
         v[i] = vi
+
+
+@wp.func
+def inelastic_push(vi: wp.vec3, push: wp.vec3, inv_dt: float, pusher_v: wp.vec3) -> wp.vec3:
+    """Velocity ``vi`` (from the position change of a substep) with the share of a contact push
+    ``push`` (m, accumulated over the substep) replaced by an inelastic contact: the velocity
+    without the push keeps all its parts, except along the push, where it becomes at least the
+    pusher's velocity ``pusher_v`` (carried along) and no more unless it already was (no
+    restitution)."""
+    pl = wp.length(push)
+    if pl < 1.0e-12:
+        return vi
+    n = push / pl
+    v0 = vi - push * inv_dt
+    v0n = wp.dot(v0, n)
+    return v0 + (wp.max(v0n, wp.dot(pusher_v, n)) - v0n) * n
 
 
 # ----------------------------------------------------------------------------- tethers
