@@ -324,6 +324,9 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
     final = evaluate_episodes(agent, eval_env, cell.eval_episodes, seed=cell.seed, deterministic=cell.deterministic)
     finals = final.pop("normalized_performance")
     eval_time = time.perf_counter() - t1
+    close_agent = getattr(agent, "close", None)
+    if callable(close_agent):  # agents that hold envs of their own (e.g. MAIL's validation env)
+        close_agent()
     env.close()
     eval_env.close()
     return {

@@ -97,4 +97,5 @@ class BestCheckpoint:
         return self.best_policy.predict(obs, state, episode_start, deterministic)
 
     def close(self) -> None:
+        """Close the validation env."""
         self.env.close()

@@ -153,6 +153,10 @@ def test_mail_agent_checkpoint_selection_acts_with_the_best_student_and_counts_i
     assert env_steps(agent, env) == env.env_steps + agent.validation_env_steps
     obs, _ = env.reset(seed=0)
     assert np.array_equal(agent.predict(obs)[0], selector.best_policy.predict(obs, deterministic=True)[0])
+    closed = []
+    selector.env.close = lambda: closed.append(True)  # the harness closes agents after evaluation
+    agent.close()
+    assert closed == [True]
 
 
 def _eval_final_p(env, act, episodes=6):

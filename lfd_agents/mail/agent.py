@@ -142,6 +142,11 @@ class MAILAgent:
         """Env steps of the checkpoint-selection episodes (0 without selection)."""
         return 0 if self.selector is None else self.selector.env_steps
 
+    def close(self) -> None:
+        """Close the checkpoint-selection env (if any)."""
+        if self.selector is not None:
+            self.selector.close()
+
     def predict(self, obs: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True):
         if self.model is None:
             raise RuntimeError("call learn() before predict()")
