@@ -90,8 +90,11 @@ class SimParams:
             ``picker_collision``; SoftGym cloth: 0.05).
         picker_collision: Pickers are sphere colliders of ``picker_radius`` that push free
             particles (cloth, rope, the particles of rigid boxes, so boxes too) out of them, as
-            FleX's picker shapes do; what a picker holds is not pushed.  Off by default: the
-            scripted experts and every committed result are tuned and measured without it, and
+            FleX's picker shapes do; what a picker holds is not pushed.  These contacts are
+            inelastic: along the push, what a picker pushes is carried at the picker's speed
+            instead of gaining push / substep (a particle squeezed against the table or left
+            inside a picker by a release is not shot away).  Off by default: the scripted
+            experts and the committed ``-v0`` results are tuned and measured without it, and
             pick-and-place moves empty pickers up to 2 m per frame, which would sweep the
             cloth.  Delta actions move pickers at most 1 cm per frame, far less than a
             picker's diameter per substep, so the sphere cannot pass through a particle.
