@@ -831,6 +831,22 @@ class ContactPushes:
     box_pusher_velocity: wp.array(dtype=wp.vec3)  # velocity of what pushed a box last (table: 0)
 
 
+@wp.func
+def inelastic_push(vi: wp.vec3, push: wp.vec3, inv_dt: float, pusher_v: wp.vec3) -> wp.vec3:
+    """Velocity ``vi`` (from the position change of a substep) with the share of a contact push
+    ``push`` (m, accumulated over the substep) replaced by an inelastic contact: the velocity
+    without the push keeps all its parts, except along the push, where it becomes at least the
+    pusher's velocity ``pusher_v`` (carried along) and no more unless it already was (no
+    restitution)."""
+    pl = wp.length(push)
+    if pl < 1.0e-12:
+        return vi
+    n = push / pl
+    v0 = vi - push * inv_dt
+    v0n = wp.dot(v0, n)
+    return v0 + (wp.max(v0n, wp.dot(pusher_v, n)) - v0n) * n
+
+
 @wp.kernel
 def update_velocity(
     q: wp.array(dtype=wp.vec3),
@@ -896,22 +912,6 @@ def update_velocity(
         if s > max_speed:
             vi = vi * (max_speed / s)
         v[i] = vi
-
-
-@wp.func
-def inelastic_push(vi: wp.vec3, push: wp.vec3, inv_dt: float, pusher_v: wp.vec3) -> wp.vec3:
-    """Velocity ``vi`` (from the position change of a substep) with the share of a contact push
-    ``push`` (m, accumulated over the substep) replaced by an inelastic contact: the velocity
-    without the push keeps all its parts, except along the push, where it becomes at least the
-    pusher's velocity ``pusher_v`` (carried along) and no more unless it already was (no
-    restitution)."""
-    pl = wp.length(push)
-    if pl < 1.0e-12:
-        return vi
-    n = push / pl
-    v0 = vi - push * inv_dt
-    v0n = wp.dot(v0, n)
-    return v0 + (wp.max(v0n, wp.dot(pusher_v, n)) - v0n) * n
 
 
 # ----------------------------------------------------------------------------- tethers
