@@ -81,8 +81,10 @@ class PickerExpert:
             states. With picker collisions on, the low end of that line may brush the cloth.
     """
 
-    #: delta mode: keep re-aiming the place point at the live target while carrying (else the
-    #: move is fixed once the picker leaves the approach phase)
+    #: delta mode: keep re-aiming the place point at the live target during the lift and the
+    #: carry's arc (else the move is fixed once the picker leaves the approach phase). Not after
+    #: the arc: a carried particle touching the cloth there can drag its target along, and the
+    #: picker would chase it across the table.
     track_place: bool = False
 
     def __init__(self, env: Any, hold_speed: float = 0.6, tolerance: float = 1e-3, max_phase_steps: int = 80,
