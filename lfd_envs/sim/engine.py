@@ -198,6 +198,7 @@ class ParticleSim:
         self._update_stiffness_scale()
         self._particle_pass_structs = self._build_particle_pass_structs()
         self._compliance = self._build_compliance_structs()
+        self._contact_pushes = self._build_contact_pushes()
 
     # ================================================================== properties
     @property
@@ -956,16 +957,14 @@ class ParticleSim:
         z = self.particle_q.numpy()[: W * N].reshape(W, N, 3)[..., 2]
         return (z - self._radius.numpy()[: W * N].reshape(W, N)).astype(np.float64)
 
-    @property
-    def _contact_pushes(self) -> Any:
-        """The contact-push accumulators read by :func:`kernels.update_velocity`."""
-        if getattr(self, "_pushes", None) is None:
-            pushes = K.ContactPushes()
-            pushes.particles_per_world, pushes.boxes_per_world = self._N, self._B
-            pushes.box_of_particle, pushes.particle_push, pushes.pusher = self._box_of, self._picker_push, self._pusher
-            pushes.box_push, pushes.box_pusher_velocity = self._box_push, self._box_pusher_v
-            self._pushes = pushes
-        return self._pushes
+    def _build_contact_pushes(self) -> Any:
+        """The contact-push accumulators read by :func:`kernels.update_velocity` (the arrays live
+        as long as the engine and no parameter enters, so :meth:`set_params` keeps them)."""
+        pushes = K.ContactPushes()
+        pushes.particles_per_world, pushes.boxes_per_world = self._N, self._B
+        pushes.box_of_particle, pushes.particle_push, pushes.pusher = self._box_of, self._picker_push, self._pusher
+        pushes.box_push, pushes.box_pusher_velocity = self._box_push, self._box_pusher_v
+        return pushes
 
     @property
     def _picker_spheres(self) -> Any:
