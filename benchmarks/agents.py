@@ -9,6 +9,7 @@ scripted or recurrent agents) and ``needs_training = False`` (skip ``learn``).
 from __future__ import annotations
 
 import importlib
+import math
 from pathlib import Path
 from typing import Any, Callable
 
@@ -156,10 +157,15 @@ def _image_extractor_kwargs(env: gym.Env) -> dict[str, Any]:
 
 
 def _sb3(algo_name: str) -> AgentFactory:
-    def factory(env: gym.Env, seed: int = 0, **kwargs: Any):
+    def factory(env: gym.Env, seed: int = 0, reward_scale: float | None = None, **kwargs: Any):
         import stable_baselines3 as sb3
 
         algo = getattr(sb3, algo_name)
+        if reward_scale is not None:  # SoftAgent/DMfD train every algorithm on scaled rewards
+            scale = float(reward_scale)
+            if not (math.isfinite(scale) and scale > 0):
+                raise ValueError(f"reward_scale must be a finite number > 0, got {reward_scale!r}")
+            env = gym.wrappers.TransformReward(env, lambda r: scale * r)
         kwargs.setdefault("verbose", 0)
         kwargs.setdefault("device", "cpu")
         if algo_name in ("SAC", "TD3"):
@@ -169,7 +175,8 @@ def _sb3(algo_name: str) -> AgentFactory:
         return algo(_policy_name(env), env, seed=seed, **kwargs)
 
     factory.__doc__ = (f"Stable-Baselines3 {algo_name} with its default hyper-parameters "
-                       "(image observations through lfd_agents.ImageEncoder).")
+                       "(image observations through lfd_agents.ImageEncoder; `reward_scale` multiplies "
+                       "the training env's rewards).")
     return factory
 
 

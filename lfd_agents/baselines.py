@@ -16,6 +16,7 @@ needs ≥ 36×36 pixels).
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any, ClassVar
 
@@ -83,6 +84,9 @@ class SACLfD(SAC):
         demonstrations: anything :func:`lfd_agents.demos.load_episodes` accepts.
         duplicate_demos: repeat the demonstrations to fill the buffer (``True``) or ``k`` times.
         learning_starts: 0 by default (the buffer already holds data).
+        reward_scale: factor on every reward (demonstrations and online alike) in the critic's
+            target (1: SB3's SAC). SoftAgent and DMfD scale the rewards of every algorithm they
+            compare on cloth and rope by 50; :class:`~lfd_agents.DMfD` defaults to 10.
         **kwargs: every other ``SAC`` argument.
     """
 
@@ -90,10 +94,16 @@ class SACLfD(SAC):
         "MlpPolicy": SACLfDPolicy, "CnnPolicy": SACLfDCnnPolicy, "MultiInputPolicy": SACLfDMultiInputPolicy}
 
     def __init__(self, policy: Any, env: GymEnv | str | None, demonstrations: Any = None,
-                 duplicate_demos: bool | int = False, learning_starts: int = 0, _init_setup_model: bool = True,
-                 **kwargs: Any):
+                 duplicate_demos: bool | int = False, learning_starts: int = 0, reward_scale: float = 1.0,
+                 _init_setup_model: bool = True, **kwargs: Any):
+        reward_scale = float(reward_scale)
+        if not (math.isfinite(reward_scale) and reward_scale > 0):
+            raise ValueError(f"reward_scale must be a finite number > 0, got {reward_scale}")
         self._episodes = load_episodes(demonstrations)
         self.duplicate_demos = duplicate_demos
+        self.reward_scale = reward_scale
+        if kwargs.get("use_sde") and reward_scale != 1.0:
+            raise ValueError("reward_scale needs use_sde=False (gSDE trains with SB3's own update)")
         super().__init__(policy, env, learning_starts=learning_starts, _init_setup_model=False, **kwargs)
         if _init_setup_model:
             self._setup_model()
@@ -150,7 +160,8 @@ class SACLfD(SAC):
                 next_actions, next_log_prob = self._action_log_prob(data.next_observations)
                 next_q = q_values(self.critic_target, data.next_observations, next_actions).min(dim=0).values
                 next_q = next_q.unsqueeze(1) - ent_coef * next_log_prob.reshape(-1, 1)
-                target_q = data.rewards + (1 - data.dones) * discounts * next_q
+                rewards = data.rewards if self.reward_scale == 1.0 else self.reward_scale * data.rewards
+                target_q = rewards + (1 - data.dones) * discounts * next_q
             current_q = q_values(self.critic, data.observations, data.actions)
             critic_loss = 0.5 * F.mse_loss(current_q, target_q.t().expand_as(current_q),
                                            reduction="none").mean(dim=1).sum()

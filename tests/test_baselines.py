@@ -56,6 +56,25 @@ def test_sac_lfd_prefills_buffer_and_trains(tmp_path):
     SACLfD.load(tmp_path / "sac_lfd.zip", env=ToyPickPlaceEnv())
 
 
+def test_sac_lfd_reward_scale_is_a_factor_on_the_stored_rewards():
+    """Training with reward_scale 3 equals training on rewards stored 3x larger, update for update."""
+    from stable_baselines3.common.logger import configure
+
+    eps = collect_episodes(3)
+    critics = []
+    for scale, stored in ((3.0, 1.0), (1.0, 3.0), (1.0, 1.0)):  # each built and trained in turn (global RNG)
+        m = SACLfD("MlpPolicy", ToyPickPlaceEnv(), demonstrations=eps, buffer_size=500, batch_size=32,
+                   policy_kwargs=tiny(), seed=0, reward_scale=scale)
+        m.set_logger(configure(None, []))
+        m.replay_buffer.rewards *= stored
+        m.train(gradient_steps=5, batch_size=32)
+        critics.append(th.cat([p.detach().flatten() for p in m.critic.parameters()]))
+    assert th.allclose(critics[0], critics[1], atol=1e-6)
+    assert not th.allclose(critics[0], critics[2], atol=1e-4)  # the scale does change training
+    with pytest.raises(ValueError, match="reward_scale"):
+        SACLfD("MlpPolicy", ToyPickPlaceEnv(), reward_scale=0.0)
+
+
 def test_awac_trains_offline_then_online():
     eps = collect_episodes(3)
     model = AWAC("MlpPolicy", ToyPickPlaceEnv(), demonstrations=eps, buffer_size=500, batch_size=32,

@@ -94,7 +94,9 @@ class ParticleSim:
 
         wp.init()
         self._device = wp.get_device(device)
-        self._params = params
+        self._finest_cloth = max((max(c.nx, c.ny) for b in builders for c in b.cloths), default=0)
+        self._given_params = params
+        self._params = params = params.for_resolution(self._finest_cloth)  # what runs
         self._use_graph = bool(use_graph)
         self._graph = None
         self._builders = list(builders)
@@ -203,8 +205,15 @@ class ParticleSim:
     # ================================================================== properties
     @property
     def params(self) -> SimParams:
-        """Simulation parameters (immutable; see :meth:`set_params`)."""
-        return self._params
+        """Simulation parameters as given (immutable; see :meth:`set_params`); :attr:`substeps`
+        gives the substeps run per frame."""
+        return self._given_params
+
+    @property
+    def substeps(self) -> int:
+        """Substeps run per frame: ``params.substeps``, raised for fine cloth when
+        ``params.substeps_reference_resolution`` is set."""
+        return self._params.substeps
 
     @property
     def num_worlds(self) -> int:
@@ -664,12 +673,14 @@ class ParticleSim:
         return max(1, (total + c - 1) // c)
 
     def set_params(self, params: SimParams) -> None:
-        """Replace the parameters (takes effect at the next step; ``max_neighbors`` is fixed)."""
+        """Replace the parameters (takes effect at the next step; ``max_neighbors`` is fixed;
+        ``substeps_reference_resolution`` is applied as at construction)."""
         if not isinstance(params, SimParams):
             raise TypeError(f"params must be a SimParams, got {type(params).__name__}")
         if params.max_neighbors != self._K:
             raise ValueError("max_neighbors cannot change after construction")
-        self._params = params
+        self._given_params = params
+        self._params = params.for_resolution(self._finest_cloth)
         self._graph = None
         self._particle_pass_structs = self._build_particle_pass_structs()
         self._compliance = self._build_compliance_structs()

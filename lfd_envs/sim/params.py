@@ -20,9 +20,17 @@ reference parameters are expressed in.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 
-__all__ = ["SimParams", "GRASP_MODES", "GRASP_TRIGGERS"]
+__all__ = ["SimParams", "GRASP_MODES", "GRASP_TRIGGERS", "effective_substeps"]
+
+
+def effective_substeps(substeps: int, reference_resolution: int | None, resolution: int) -> int:
+    """Substeps for a cloth of ``resolution`` particles per side when ``substeps`` suit one of
+    ``reference_resolution`` (``None``: no scaling); never fewer than ``substeps``."""
+    if reference_resolution is None or resolution <= reference_resolution:
+        return substeps
+    return max(substeps, math.ceil(substeps * (resolution / reference_resolution) ** 1.5 - 1e-9))
 
 GRASP_MODES = ("closest", "radius")
 GRASP_TRIGGERS = ("level", "edge")
@@ -36,6 +44,17 @@ class SimParams:
         frame_dt: Duration of one :meth:`ParticleSim.step` call in seconds (FleX: 0.01 s).
         substeps: Substeps per frame; each substep has ``frame_dt / substeps`` seconds.
         iterations: Gauss-Seidel solver iterations per substep.
+        substeps_reference_resolution: Resolution-aware substeps.  ``None`` (default) runs
+            ``substeps`` whatever the cloth.  Given ``n_ref``, ``substeps`` are those of a cloth of
+            ``n_ref`` particles per side, and a scene whose finest cloth has ``n > n_ref``
+            particles along a side runs ``ceil(substeps x (n / n_ref) ** 1.5)`` substeps
+            (:func:`effective_substeps`): a solver of a few iterations per substep leaves a
+            stretch error that grows with the length of the particle chains it carries
+            (hung from two corners for 2.5 s at 20 substeps, a 0.6 m cloth stretches 5.3 % at
+            its worst edge with 40 particles per side and 38 % with 80;
+            ``python -m benchmarks.cloth_stretch``), and the ``1.5`` power keeps that error at
+            the reference cloth's.  :class:`~lfd_envs.sim.ParticleSim` applies it
+            (:meth:`for_resolution`); ``sim.substeps`` gives the substeps it runs.
         gravity: Gravitational acceleration along +z in m/s^2 (negative: downwards).
         particle_radius: Default contact radius (m) of cloth/rope particles against the
             ground and static/rigid boxes; a resting cloth lies at ``z = particle_radius``
@@ -129,6 +148,7 @@ class SimParams:
     frame_dt: float = 0.01
     substeps: int = 2
     iterations: int = 5
+    substeps_reference_resolution: int | None = None
     gravity: float = -9.81
     particle_radius: float = 0.00625
     self_collision: bool = True
@@ -201,6 +221,8 @@ class SimParams:
         _int("iterations", 1)
         _int("self_collision_interval", 1)
         _int("max_neighbors", 1)
+        if self.substeps_reference_resolution is not None:
+            _int("substeps_reference_resolution", 2)
         _int("collision_passes", 0)
         _int("release_relaxation", 0)
         if not 1.0 <= _finite("self_collision_relaxation") < 2.0:
@@ -222,6 +244,15 @@ class SimParams:
             raise ValueError(f"SimParams.grasp_trigger must be one of {GRASP_TRIGGERS}, got {self.grasp_trigger!r}")
         if self.grasp_mode not in GRASP_MODES:
             raise ValueError(f"SimParams.grasp_mode must be one of {GRASP_MODES}, got {self.grasp_mode!r}")
+
+    def for_resolution(self, resolution: int) -> "SimParams":
+        """These params for a scene whose finest cloth has ``resolution`` particles along a side:
+        ``substeps`` raised as ``substeps_reference_resolution`` says (see there) and the
+        reference cleared, so applying it again changes nothing; unchanged without a reference."""
+        if self.substeps_reference_resolution is None:
+            return self
+        substeps = effective_substeps(self.substeps, self.substeps_reference_resolution, resolution)
+        return replace(self, substeps=substeps, substeps_reference_resolution=None)
 
     @property
     def substep_dt(self) -> float:
