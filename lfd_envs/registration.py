@@ -40,13 +40,13 @@ ENV_SPECS: dict[str, tuple[str, str | None, dict, int]] = {
 
 #: Engine settings of the ``-v1`` particle ids, closer to FleX than the ``-v0`` defaults: pickers
 #: are sphere colliders, the solver takes many small steps of one iteration without tethers
-#: (stiff cloth at 40 per side without long-range attachments; a finer cloth gets more substeps,
-#: 57 at 80 per side, so it is as stiff), self-collision is rebuilt every 10 substeps and cloth
-#: and rope are 1 cm thick at every resolution. ``sim_options`` given to ``gymnasium.make`` for a
-#: ``-v1`` id are applied on top of these.
-FLEX_LIKE_SIM_OPTIONS: dict = {"substeps": 20, "substeps_reference_resolution": 40, "iterations": 1,
-                               "tethers": False, "collision_passes": 0, "self_collision_interval": 10,
-                               "picker_collision": True, "self_collision_distance": 0.01}
+#: (stiff cloth at 40 per side without long-range attachments), self-collision is rebuilt every
+#: 10 substeps and cloth and rope are 1 cm thick at every resolution. ``sim_options`` given to
+#: ``gymnasium.make`` for a ``-v1`` id are applied on top of these (``{"substeps_reference_resolution":
+#: 40}`` keeps finer cloth as stiff; see :class:`~lfd_envs.sim.SimParams`).
+FLEX_LIKE_SIM_OPTIONS: dict = {"substeps": 20, "iterations": 1, "tethers": False, "collision_passes": 0,
+                               "self_collision_interval": 10, "picker_collision": True,
+                               "self_collision_distance": 0.01}
 #: ``-v1`` pick-and-place speed limit (m/s): MAIL's 1 cm per 10 ms frame.
 FLEX_LIKE_PICK_PLACE_SPEED = 1.0
 

@@ -56,12 +56,13 @@ def test_small_steps_hang_a_cloth_without_tethers():
     assert loose["worst"] > 0.3, loose  # what the small steps fix
 
 
-def test_v1_settings_hang_an_80x80_cloth_as_stiffly_as_a_40x40_one():
-    """The -v1 solver runs more substeps for finer cloth: 80x80 (57 substeps) worst edge <= 10 %,
-    mean <= 1 % (measured 5.1 % / 0.04 %); the same 20 substeps as 40x40 leave 38 %."""
+def test_resolution_aware_substeps_hang_an_80x80_cloth_as_stiffly_as_a_40x40_one():
+    """The -v1 solver with substeps_reference_resolution=40 runs 57 substeps for an 80x80 cloth:
+    worst edge <= 10 %, mean <= 1 % (measured 5.1 % / 0.04 %); the same 20 substeps as 40x40
+    leave 38 %."""
     from lfd_envs.registration import FLEX_LIKE_SIM_OPTIONS
 
-    v1 = hang(80, SimParams(**FLEX_LIKE_SIM_OPTIONS))
+    v1 = hang(80, SimParams(**FLEX_LIKE_SIM_OPTIONS, substeps_reference_resolution=40))
     assert v1["substeps"] == 57
     assert v1["worst"] <= 0.10 and v1["mean"] <= 0.01, v1
     fixed = hang(80, SimParams(substeps=20, **SMALL_STEPS), frames=120)
