@@ -465,3 +465,20 @@ def test_aggregate_compares_agents_on_each_envs_main_cell():
     assert ("Agents run on all 2 environments; per env, its cell with the most agents (1 cell with fewer left out; "
             "ties go to the first label): A-v0 (main); B-v0 (main)") in md
     assert "| bc | 3 × 2 |" in md and "| dmfd | 3 × 2 |" in md
+
+
+
+def test_sb3_agents_train_on_scaled_rewards_when_asked():
+    from toy_env import PointReachEnv
+
+    model = resolve_agent("sac")(PointReachEnv(), seed=0, reward_scale=10.0, learning_starts=10)
+    plain = PointReachEnv()
+    venv = model.get_env()
+    venv.seed(3)
+    venv.reset()
+    plain.reset(seed=3)
+    action = np.full((1, 2), 0.5, np.float32)
+    reward = float(venv.step(action)[1][0])
+    assert reward != 0.0 and reward == pytest.approx(10.0 * float(plain.step(action[0])[1]), rel=1e-5)
+    with pytest.raises(ValueError, match="reward_scale"):
+        resolve_agent("sac")(PointReachEnv(), reward_scale=-1.0)
