@@ -7,9 +7,8 @@ executed (``direct``, ``interpolation``, ``planner``, or held still: ``failed`` 
 decisions earned reward (on Push2D also the closest the fingertip came to the box at the end of
 a decision; the reward starts within 0.1 m), plus the entropy coefficient at the end. A
 warm-up longer than the run (``--learning-starts 1000000``) measures uniform-random MoPA
-exploration. A policy that keeps moving the
-arm by planned paths lasts about ten low-level steps per decision; one that turns to targets it
-cannot reach lasts one.
+exploration. A policy that keeps moving the arm by planned paths lasts about ten low-level steps
+per decision; one that turns to targets it cannot reach lasts one.
 
 Usage::
 
