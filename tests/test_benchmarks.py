@@ -467,7 +467,6 @@ def test_aggregate_compares_agents_on_each_envs_main_cell():
     assert "| bc | 3 × 2 |" in md and "| dmfd | 3 × 2 |" in md
 
 
-
 def test_sb3_agents_train_on_scaled_rewards_when_asked():
     from toy_env import PointReachEnv
 
