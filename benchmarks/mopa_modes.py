@@ -32,8 +32,8 @@ import numpy as np
 def mode_rows(env_id: str = "Push2DObstacle-v0", steps: int = 20_000, window: int = 5000, learning_starts: int = 100,
               seed: int = 0, update_per_stored: bool = False) -> tuple[list[dict[str, Any]], float]:
     """Per-window rows (decisions, share of each mode, low-level steps per decision, rewarded
-    decisions, gradient updates so far) of one MoPA-SAC training run, and the final entropy
-    coefficient."""
+    decisions, gradient updates so far and, on Push2D, the closest fingertip-box distance) of one
+    MoPA-SAC training run, and the final entropy coefficient."""
     import gymnasium as gym
     from stable_baselines3.common.callbacks import BaseCallback
 
@@ -44,6 +44,8 @@ def mode_rows(env_id: str = "Push2DObstacle-v0", steps: int = 20_000, window: in
     agent = MoPAAgent(gym.make(env_id), seed=seed, learning_starts=learning_starts,
                       update_per_stored=update_per_stored)
     counts: dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
+    task = agent.train_env.unwrapped
+    push2d = hasattr(task, "fingertip_xy") and hasattr(task, "box_xy")  # then: how close the arm came
 
     class Record(BaseCallback):
         def _on_step(self) -> bool:
@@ -54,8 +56,7 @@ def mode_rows(env_id: str = "Push2DObstacle-v0", steps: int = 20_000, window: in
             c["low_level"] += int(info["mopa_k"])
             c["rewarded"] += int(float(self.locals["rewards"][0]) > 0)
             c["updates"] = agent.model._n_updates
-            task = agent.train_env.unwrapped
-            if hasattr(task, "fingertip_xy") and hasattr(task, "box_xy"):  # Push2D: how close the arm came
+            if push2d:
                 d = float(np.linalg.norm(task.fingertip_xy() - task.box_xy()))
                 c["closest"] = min(c.get("closest", np.inf), d)
             return True
