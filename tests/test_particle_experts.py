@@ -88,6 +88,33 @@ def test_direct_approach_spreads_the_descent_and_folds_as_well(direct):
     assert _episode(env, expert, 0) > 0.9
 
 
+@pytest.mark.parametrize("env_id,direct", [("ClothFoldDiagonalUnpinned-v1", False),
+                                           ("ClothFoldDiagonalUnpinned-v1", True), ("StraightenRope-v1", False)])
+def test_grasp_in_descent_has_no_motionless_grasp_step_and_still_holds(env_id, direct):
+    """With ``grasp_in_descent`` the flag goes on in the step that arrives at the pick point:
+    no step commands the grasp without moving, and the picker holds a particle from then on."""
+    env = gym.make(env_id, obs_mode="state", action_mode="delta")
+    base = env.unwrapped
+    speeds = {"hold_speed": 0.5, "free_speed": 0.5, "direct_approach": direct}
+    for flag in (False, True):
+        expert = make_expert(env, grasp_in_descent=flag, **speeds)
+        obs, _ = env.reset(seed=0, options={"variant": 0, "split": "eval"})
+        expert.reset()
+        first_on = None
+        for _ in range(60):
+            action = expert.predict(obs)[0].reshape(-1, 4)
+            if first_on is None and (action[:, 3] > 0).any():
+                first_on = action
+            obs, *_ = env.step(action.ravel())
+            if first_on is not None:
+                break
+        assert first_on is not None
+        moving = np.abs(first_on[first_on[:, 3] > 0, :3]).max()
+        assert (moving > 0.05) == flag, (flag, first_on)  # descending as the flag goes on, or not
+        assert (base.batch.sim.attached[0] >= 0).any()  # grasped in that very step
+    assert _episode(env, make_expert(env, grasp_in_descent=True, **speeds), 0) > 0.9
+
+
 def test_speed_caps_every_phase_and_the_rope_still_straightens():
     env = gym.make("StraightenRope-v0", obs_mode="state", action_mode="delta", resolution=21)
     expert = make_expert(env, hold_speed=0.25, free_speed=0.25)

@@ -79,6 +79,16 @@ class PickerExpert:
             approach steps, an action field without the jump from "move sideways" to "drop"
             above the pick point, which regression-based learners smear over neighbouring
             states. With picker collisions on, the low end of that line may brush the cloth.
+        grasp_in_descent: delta mode: turn the grasp flag on in the last step of the descent
+            (with ``direct_approach``: of the approach), the step that reaches the pick point,
+            and skip the motionless grasp step. Default
+            off: the picker arrives with the flag off and grasps in a step of its own. That
+            step (no motion, flag on) sits between a descent (flag off) and a lift, all from
+            nearly the same state; a regression-based learner averages them into "stay, flag
+            off" at the pick point and stays there for good. With the flag already on as the
+            picker arrives, the actions at the pick point all have the flag on (a picker grasps
+            whenever its flag is on and it holds nothing). The grasp then happens a little above
+            the pick point, so the lift never lowers the picker.
     """
 
     #: delta mode: keep re-aiming the place point at the live target during the lift and the
@@ -88,7 +98,7 @@ class PickerExpert:
     track_place: bool = False
 
     def __init__(self, env: Any, hold_speed: float = 0.6, tolerance: float = 1e-3, max_phase_steps: int = 80,
-                 direct_approach: bool = False, free_speed: float = 1.0) -> None:
+                 direct_approach: bool = False, free_speed: float = 1.0, grasp_in_descent: bool = False) -> None:
         for name, speed in (("hold_speed", hold_speed), ("free_speed", free_speed)):
             if not 0.0 < float(speed) <= 1.0:
                 raise ValueError(f"{name} must be in (0, 1] (a fraction of the maximum delta speed), got {speed!r}")
@@ -108,6 +118,7 @@ class PickerExpert:
         self.tolerance = float(tolerance)
         self.max_phase_steps = int(max_phase_steps)
         self.direct_approach = bool(direct_approach)
+        self.grasp_in_descent = bool(grasp_in_descent)
         self._episodes = EpisodeTracker(env)
         self.reset()
 
@@ -217,6 +228,9 @@ class PickerExpert:
             step = self.hold_speed * self.actions.step_size * self.actions.action_repeat
             self._carry_alpha = min(1.0, self._carry_alpha + step / max(length, 1e-9))
             target = carry_point(wpt["lifted"], wpt["above_place"], arc, np.full(len(arc), self._carry_alpha), top)
+        if name == "lift" and self.grasp_in_descent:  # grasped higher up: the lift never goes down
+            target = target.copy()
+            target[:, 2] = np.maximum(target[:, 2], cur[:, 2])
         out = cur.copy()
         out[move.active] = ws.clip(target)[move.active]
         return out
@@ -250,8 +264,12 @@ class PickerExpert:
                     target = self._target(name, move, cur)
             if name == "hold":  # keep still, holding, for the schedule's hold time (in env steps)
                 done = self._phase_steps >= self._hold_steps()
+            elif name == "grasp" and self.grasp_in_descent:  # the flag went on in the descent
+                done = True
             else:
                 done = (self._issued if name in ONE_SHOT else gap < self.tolerance) or self._phase_steps >= self.max_phase_steps
+                if not done and self._grasps_on_arrival(name) and self._phase_steps > 0:
+                    done = bool(np.all(self._holding()[move.active]))  # grasped on the way: arrived
                 if not done and name in CONTACT and self._phase_steps > 0:  # reached or stopped by contact
                     reached = np.abs(target - cur).max(axis=1) < self.tolerance
                     done = bool(np.all((reached | self._blocked(cur))[move.active]))
@@ -270,10 +288,22 @@ class PickerExpert:
         scale = max(1.0, np.abs(delta).max() / speed)
         action[:, :3] = delta / scale
         action[move.active, 3] = 1.0 if name in HOLDING else -1.0
+        if self._grasps_on_arrival(name):  # flag on in the step that arrives at the pick point
+            arrives = np.abs(target - cur).max(axis=1) <= speed * reach + self.tolerance
+            action[move.active & arrives, 3] = 1.0
         self._phase_steps += 1
         self._issued = True
         self._sent = np.stack([cur, cur + action[:, :3] * reach])
         return action.ravel()
+
+    def _grasps_on_arrival(self, name: str) -> bool:
+        """Phase ``name`` is the one that reaches the pick point and ``grasp_in_descent`` is on."""
+        return self.grasp_in_descent and (name == "descend" or (name == "approach" and self.direct_approach))
+
+    def _holding(self) -> np.ndarray:
+        """Per picker: it holds at least one particle."""
+        attached = np.asarray(self.base.batch.sim.attached[0])
+        return np.isin(np.arange(self.num_pickers), attached)
 
     def _blocked(self, cur: np.ndarray) -> np.ndarray:
         """Per picker: it covered less than :data:`BLOCKED_FRACTION` of the displacement
