@@ -81,9 +81,9 @@ class PickerExpert:
             states. With picker collisions on, the low end of that line may brush the cloth.
         grasp_in_descent: delta mode: turn the grasp flag on in the last step of the descent
             (with ``direct_approach``: of the approach), the step that reaches the pick point,
-            and skip the motionless grasp step. Default
-            off: the picker arrives with the flag off and grasps in a step of its own. That
-            step (no motion, flag on) sits between a descent (flag off) and a lift, all from
+            and skip the motionless grasp step. Default off: the picker arrives with the flag
+            off and grasps in a step of its own. That step (no motion, flag on) sits between
+            a descent (flag off) and a lift, all from
             nearly the same state; a regression-based learner averages them into "stay, flag
             off" at the pick point and stays there for good. With the flag already on as the
             picker arrives, the actions at the pick point all have the flag on (a picker grasps
