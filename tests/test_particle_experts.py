@@ -115,6 +115,25 @@ def test_grasp_in_descent_has_no_motionless_grasp_step_and_still_holds(env_id, d
     assert _episode(env, make_expert(env, grasp_in_descent=True, **speeds), 0) > 0.9
 
 
+def test_v1_rope_pick_place_expert_holds_both_ends_through_the_carry():
+    """With colliding pickers a pick at the table pushed the rope's end out of the picker's
+    reach before the grasp (eval variant 0: nothing held, both ends shoved 8 cm); the rope expert
+    picks where the picker rests on the end instead. Frame by frame through its first move."""
+    env = gym.make("StraightenRope-v1", obs_mode="state", action_mode="pick_place")
+    obs, _ = env.reset(seed=0, options={"variant": 0, "split": "eval"})
+    expert = make_expert(env)
+    batch = env.unwrapped.batch
+    action, _ = expert.predict(obs)
+    motion = batch.action_mode.plan_motion(action[None], batch.sim.picker_positions)
+    held_while_carried = []
+    for f in range(int(motion.frames[0])):
+        batch.sim.step(motion.targets[f], motion.grasp[f])
+        if motion.grasp[f, 0].all():
+            attached = np.asarray(batch.sim.attached[0])
+            held_while_carried.append(attached[[0, -1]].tolist())
+    assert held_while_carried and all(h == [0, 1] for h in held_while_carried[1:]), held_while_carried[:3]
+
+
 def test_speed_caps_every_phase_and_the_rope_still_straightens():
     env = gym.make("StraightenRope-v0", obs_mode="state", action_mode="delta", resolution=21)
     expert = make_expert(env, hold_speed=0.25, free_speed=0.25)

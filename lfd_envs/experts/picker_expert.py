@@ -16,7 +16,9 @@ pick and place in empty air at the top of the workspace (pick_place).
 
 With colliding pickers (``SimParams.picker_collision``, the ``-v1`` ids) a delta-mode picker
 descends only until it rests on top of the particles under its pick point, and a descent or
-lowering also ends when the picker is stopped by what it pushes on (a box top).
+lowering also ends when the picker is stopped by what it pushes on (a box top). Experts with
+:attr:`PickerExpert.pick_place_on_top` (the rope's) also pick at that resting height in
+pick_place mode and place that much higher.
 """
 
 from __future__ import annotations
@@ -96,6 +98,10 @@ class PickerExpert:
     #: the arc: a carried particle touching the cloth there can drag its target along, and the
     #: picker would chase it across the table.
     track_place: bool = False
+    #: pick_place mode with colliding pickers: pick where the picker rests on top of the
+    #: particles and place that much higher (see :meth:`_rest_on_top`). Off by default: the cloth
+    #: experts' plans are tuned to picks at the cloth's height.
+    pick_place_on_top: bool = False
 
     def __init__(self, env: Any, hold_speed: float = 0.6, tolerance: float = 1e-3, max_phase_steps: int = 80,
                  direct_approach: bool = False, free_speed: float = 1.0, grasp_in_descent: bool = False) -> None:
@@ -197,11 +203,22 @@ class PickerExpert:
         move = self.next_move()
         if move is not None:
             self.moves_done += 1
+            if self._pickers_collide and self.pick_place_on_top:
+                self._rest_on_top(move)
         pick, place = self._idle_points()
         if move is not None:
             pick[move.active] = move.pick[move.active]
             place[move.active] = move.place[move.active]
         return self.actions.join(pick, place)
+
+    def _rest_on_top(self, move: Move) -> None:
+        """Pick-and-place with colliding pickers: pick where the picker rests on top of the
+        particles under the pick point (sent lower, it squeezes them out of its reach before the
+        grasp), and place that much higher too (lowered onto the table, it presses the released
+        particle aside)."""
+        rest = self._resting_on_top(move.pick)
+        move.place[:, 2] += rest[:, 2] - move.pick[:, 2]
+        move.pick = rest
 
     def _idle_points(self) -> tuple[np.ndarray, np.ndarray]:
         """Pick/place points that touch nothing: above each picker, at the workspace top."""

@@ -27,6 +27,10 @@ DONE_ERROR = 0.02
 class StraightenRopeExpert(PickerExpert):
     """Expert of :class:`~lfd_envs.tasks.rope.StraightenRopeEnv` (see module docstring)."""
 
+    #: with colliding pickers a pick at the table squeezes the thin rope's end out of reach
+    #: before the grasp, and a place at the table presses the released end aside
+    pick_place_on_top = True
+
     def _rope(self) -> tuple[np.ndarray, float]:
         pos = self.positions
         return pos, float(self.base.batch.ctx["length"][0])
