@@ -59,6 +59,26 @@ DEFAULT_NET_ARCH = (1024, 1024)
 
 # ----------------------------------------------------------------------------------- loss terms
 AWR_WEIGHTINGS = ("softmax", "binary")
+AWR_FITS = ("likelihood", "isotropic")
+
+
+def awr_log_prob(actions: th.Tensor, mean: th.Tensor, std: th.Tensor, fit: str = "likelihood") -> th.Tensor:
+    """Per-sample log-likelihood that the advantage-weighted term maximises (shape (B,)).
+
+    ``"likelihood"`` (DMfD): log N(a; μ, σ) with the policy's per-dimension σ. Its gradient
+    weights each action dimension's error by 1/σ²: dimensions the policy already fits tightly
+    (σ small) dominate, and a hard one (a grasp flag that switches between two nearly equal
+    states) gets a large σ and is left underfitted. ``"isotropic"``: the mean fits every
+    dimension with one σ (the geometric mean of the policy's σ, detached), as a regression
+    does, and each σ still fits its own dimension's errors (the mean detached there).
+    """
+    if fit == "likelihood":
+        return normal_log_prob(actions, mean, std)
+    if fit == "isotropic":
+        log_std = th.broadcast_to(std.log(), mean.shape[-1:])
+        iso = log_std.mean().exp().detach().expand_as(log_std)
+        return normal_log_prob(actions, mean, iso) + normal_log_prob(actions, mean.detach(), std)
+    raise ValueError(f"fit must be one of {AWR_FITS}, got {fit!r}")
 
 
 def awr_weights(advantages: th.Tensor, temperature: float, weighting: str = "softmax") -> th.Tensor:
@@ -322,6 +342,9 @@ class DMfD(OffPolicyAlgorithm):
             exp(A/λ)) or ``"binary"`` (CRR's filter 1[A > 0]: only actions the critic rates above
             the policy's own are imitated, so neither the agent's own failed attempts nor the bad
             steps of suboptimal demonstrations are; λ is then unused).
+        awr_fit: how L_A fits the stored actions: ``"likelihood"`` (DMfD: log N(a; μ, σ) with
+            the learned per-dimension σ) or ``"isotropic"`` (the mean fits every action dimension
+            alike, as BC's regression does; see :func:`awr_log_prob`).
         target_ent_coef: entropy coefficient in the critic target (0.0 as in the original code).
         reward_scale: factor on every reward (demonstrations and online alike) before the critic
             sees it; it sets the size of Q, hence of the advantages against λ and of Q against α.
@@ -352,7 +375,7 @@ class DMfD(OffPolicyAlgorithm):
                  batch_size: int = 256, tau: float = 0.005, gamma: float = 0.9,
                  train_freq: int | tuple[int, str] = 1, gradient_steps: int = 1, entropy_weight: float = 0.1,
                  ent_coef: float = 0.5, awr_temperature: float = 2.0, awr_weighting: str = "softmax",
-                 target_ent_coef: float = 0.0,
+                 awr_fit: str = "likelihood", target_ent_coef: float = 0.0,
                  reward_scale: float = 10.0, rsi_prob: float | str = "auto", imitation_reward_scale: float = 1.0,
                  duplicate_demos: bool | int = False, augment: bool | str = "auto", aug_pad: int = 2,
                  offline_steps: int = 0, demo_ratio: float | None = None, replay_buffer_class: Any = None,
@@ -365,6 +388,8 @@ class DMfD(OffPolicyAlgorithm):
             raise ValueError(f"awr_temperature (λ) must be > 0, got {awr_temperature}")
         if awr_weighting not in AWR_WEIGHTINGS:
             raise ValueError(f"awr_weighting must be one of {AWR_WEIGHTINGS}, got {awr_weighting!r}")
+        if awr_fit not in AWR_FITS:
+            raise ValueError(f"awr_fit must be one of {AWR_FITS}, got {awr_fit!r}")
         if ent_coef < 0 or target_ent_coef < 0:
             raise ValueError("ent_coef and target_ent_coef must be >= 0")
         if aug_pad < 0 or offline_steps < 0:
@@ -377,6 +402,7 @@ class DMfD(OffPolicyAlgorithm):
         self.ent_coef = float(ent_coef)
         self.awr_temperature = float(awr_temperature)
         self.awr_weighting = awr_weighting
+        self.awr_fit = awr_fit
         self.target_ent_coef = float(target_ent_coef)
         self.reward_scale = float(reward_scale)
         self.imitation_reward_scale = float(imitation_reward_scale)
@@ -544,7 +570,7 @@ class DMfD(OffPolicyAlgorithm):
                     q_buffer = self._min_q(critic, data.observations, data.actions)
                 q_pi = self._min_q(critic, data.observations, pi_actions)
         advantages = q_buffer - q_pi.detach()
-        out = dmfd_actor_loss(normal_log_prob(data.actions, mean, std), advantages, logp_pi, q_pi,
+        out = dmfd_actor_loss(awr_log_prob(data.actions, mean, std, self.awr_fit), advantages, logp_pi, q_pi,
                               temperature=self.awr_temperature, ent_coef=self.ent_coef,
                               entropy_weight=self.entropy_weight, weighting=self.awr_weighting)
         out["advantages"] = advantages

@@ -14,8 +14,8 @@ from dmfd_toy_env import ToyPickPlaceEnv, collect_episodes, evaluate
 from lfd_agents import BC, DMfD, ReferenceStateInit
 from lfd_agents.augment import random_shift
 from lfd_agents.demos import fill_replay_buffer, load_episodes
-from lfd_agents.dmfd import awr_weights, dmfd_actor_loss, td_target
-from lfd_agents.networks import log_prob
+from lfd_agents.dmfd import awr_log_prob, awr_weights, dmfd_actor_loss, td_target
+from lfd_agents.networks import log_prob, normal_log_prob
 
 th.set_num_threads(1)  # 2 shared cores: threads only add contention
 def tiny() -> dict:
@@ -50,6 +50,32 @@ def test_binary_weighting_imitates_only_actions_rated_above_the_policys():
         awr_weights(adv, temperature=2.0, weighting="exp")
     with pytest.raises(ValueError, match="awr_weighting"):
         DMfD("MlpPolicy", ToyPickPlaceEnv(), buffer_size=100, policy_kwargs=tiny(), awr_weighting="hard")
+
+
+def _fit_grads(fit: str) -> tuple[th.Tensor, th.Tensor]:
+    actions = th.tensor([[0.1, 0.1, 0.1]])
+    mean = th.zeros(1, 3, requires_grad=True)
+    log_std = th.tensor([-5.0, -2.0, -0.5], requires_grad=True)  # a tight, a medium and a loose dimension
+    awr_log_prob(actions, mean, log_std.exp(), fit).sum().backward()
+    return mean.grad[0], log_std.grad
+
+
+def test_isotropic_fit_pulls_every_action_dimension_alike_and_fits_each_std():
+    """The likelihood fit weights a dimension's error by 1/sigma^2: with the same error of 0.1 the
+    tight dimension is pulled e^9 (about 8100) times harder than the loose one. The isotropic
+    fit pulls all three alike, and its std gradient is the likelihood's."""
+    mean_grad, std_grad = _fit_grads("likelihood")
+    assert (mean_grad[0] / mean_grad[2]).item() == pytest.approx(math.exp(9.0), rel=1e-4)
+    iso_mean_grad, iso_std_grad = _fit_grads("isotropic")
+    assert th.allclose(iso_mean_grad, iso_mean_grad[0].expand(3))
+    assert iso_mean_grad[0].item() == pytest.approx(0.1 / math.exp(2 * -2.5), rel=1e-4)  # one sigma: e^mean(log sigma)
+    assert th.allclose(iso_std_grad, std_grad)
+    a, m, sd = th.randn(4, 3), th.randn(4, 3), th.rand(3) + 0.1
+    assert th.equal(awr_log_prob(a, m, sd, "likelihood"), normal_log_prob(a, m, sd))
+    with pytest.raises(ValueError, match="fit must be one of"):
+        awr_log_prob(a, m, sd, "mse")
+    with pytest.raises(ValueError, match="awr_fit"):
+        DMfD("MlpPolicy", ToyPickPlaceEnv(), buffer_size=100, policy_kwargs=tiny(), awr_fit="mse")
 
 
 def test_td_target_hand_computed():
