@@ -10,8 +10,9 @@ start of the online phase closely, for several settings at a time:
    rebuilt with those settings, loads the offline state and runs ``--online-steps`` env steps,
    evaluated on ``--eval-episodes`` eval variants every ``--eval-every`` steps;
 3. per evaluation it reports the mean p̂, the fraction of episodes in which a picker held a
-   particle at the end of some step (particle tasks), the mean log-std of the actor, min-Q and
-   the largest advantage weight on a demonstration batch and on an online batch, and at the end
+   particle at the end of some step (particle tasks), the mean log-std of the actor and its
+   standard deviation per action dimension, min-Q and the largest advantage weight on a
+   demonstration batch and on an online batch, and at the end
    how far the actor's mean action moved, per action dimension, on demonstration and on online
    states.
 
@@ -154,6 +155,8 @@ def probe_cell(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, age
             rec = {"variant": name, "online_steps": done, "mean_p": round(float(np.mean(scores)), 4),
                    **{k: round(v, 4) for k, v in held.items()},
                    "log_std": round(float(agent.actor.log_std().detach().mean()), 4),
+                   "std_per_dim": [round(float(x), 4) for x in agent.actor.log_std().detach().exp().broadcast_to(
+                       agent.action_space.shape)],
                    **{k: round(v, 4) for k, v in {**_batch_stats(agent, agent.demo_buffer, "demo"),
                                                    **_batch_stats(agent, agent.replay_buffer, "online")}.items()}}
             records.append(rec)
