@@ -285,7 +285,7 @@ class PickerExpert:
             else:
                 done = (self._issued if name in ONE_SHOT else gap < self.tolerance) or self._phase_steps >= self.max_phase_steps
                 if not done and self._grasps_on_arrival(name) and self._phase_steps > 0:
-                    done = bool(np.all(self._holding()[move.active]))  # grasped on the way: arrived
+                    done = bool(np.all(self.base.held_particles[move.active] > 0))  # grasped on the way: arrived
                 if not done and name in CONTACT and self._phase_steps > 0:  # reached or stopped by contact
                     reached = np.abs(target - cur).max(axis=1) < self.tolerance
                     done = bool(np.all((reached | self._blocked(cur))[move.active]))
@@ -315,11 +315,6 @@ class PickerExpert:
     def _grasps_on_arrival(self, name: str) -> bool:
         """Phase ``name`` is the one that reaches the pick point and ``grasp_in_descent`` is on."""
         return self.grasp_in_descent and (name == "descend" or (name == "approach" and self.direct_approach))
-
-    def _holding(self) -> np.ndarray:
-        """Per picker: it holds at least one particle."""
-        attached = np.asarray(self.base.batch.sim.attached[0])
-        return np.isin(np.arange(self.num_pickers), attached)
 
     def _blocked(self, cur: np.ndarray) -> np.ndarray:
         """Per picker: it covered less than :data:`BLOCKED_FRACTION` of the displacement
