@@ -201,7 +201,8 @@ def _named_factory(module: str, name: str) -> AgentFactory:
 
 def _lfd_demo_agent(class_name: str) -> AgentFactory:
     def factory(env: gym.Env, seed: int = 0, demo_episodes: int = 20, demo_cache: str | Path | None = None,
-                demo_policy: str = "expert", demo_policy_kwargs: dict[str, Any] | None = None, **kwargs: Any):
+                demo_policy: str = "expert", demo_policy_kwargs: dict[str, Any] | None = None,
+                select_episodes: int = 0, select_first_variant: int = 400, **kwargs: Any):
         from benchmarks.demo_cache import CACHE_DIRNAME, demonstrations_for
 
         cls = getattr(importlib.import_module("lfd_agents"), class_name)
@@ -217,13 +218,19 @@ def _lfd_demo_agent(class_name: str) -> AgentFactory:
             # an SB3 SAC policy (SAC-LfD's): give it the project's image encoder, as for plain SAC
             kwargs["policy_kwargs"] = {**_image_extractor_kwargs(env), **dict(kwargs.get("policy_kwargs") or {})}
         agent = cls(policy, env, demonstrations=str(demos.path), seed=seed, **kwargs)
+        if int(select_episodes) > 0:  # act with the best checkpoint on validation variants
+            from lfd_agents.selection import SelectBest
+
+            agent = SelectBest(agent, env, int(select_episodes), int(select_first_variant), seed=seed)
         agent.demo_transitions = demos.transitions
         agent.demo_performance = demos.mean_final_performance
         return agent
 
     factory.__doc__ = (f"lfd_agents.{class_name} with `demo_episodes` demonstrations (cached) of `demo_policy` "
                        "(default the scripted expert; `noisy_expert` with `demo_policy_kwargs` {'epsilon': ...} "
-                       "for lower-quality ones).")
+                       "for lower-quality ones); `select_episodes` N > 0 scores the policy on N training variants "
+                       "(from `select_first_variant`, default 400) after every training chunk and acts with the "
+                       "best one (lfd_agents.selection.SelectBest; the validation steps count as env steps).")
     factory.uses_demo_cache = True  # the harness passes demo_cache=<out>/_demos
     return factory
 

@@ -15,6 +15,8 @@ one that acts::
 
 Validation episodes cost env steps of their own (``episodes`` episodes per ``update``); they are
 counted in :attr:`BestCheckpoint.env_steps` and never enter a replay buffer.
+:class:`SelectBest` wraps any SB3-style learner in that loop: its ``learn`` trains and scores,
+its ``predict`` acts with the best checkpoint so far.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ import numpy as np
 
 from lfd_envs.core.rollout import play_episode
 
-__all__ = ["BestCheckpoint"]
+__all__ = ["BestCheckpoint", "SelectBest"]
 
 
 class _Acting:
@@ -99,3 +101,48 @@ class BestCheckpoint:
     def close(self) -> None:
         """Close the validation env."""
         self.env.close()
+
+
+class SelectBest:
+    """An SB3-style learner whose acting policy is its best checkpoint (see the module docstring).
+
+    Every ``learn`` call trains ``model`` and then scores its policy on the validation variants
+    (:class:`BestCheckpoint`); ``predict`` acts with the best-scoring policy so far;
+    ``policy`` is the one ``model`` trains.
+
+    Args:
+        model: the learner (an SB3 algorithm, or anything with ``learn`` and a ``policy``).
+        env: the env made with ``gym.make`` that the validation env copies.
+        episodes, first_variant, seed: as in :class:`BestCheckpoint`.
+    """
+
+    def __init__(self, model: Any, env: gym.Env, episodes: int = 10, first_variant: int = 400,
+                 seed: int = 0) -> None:
+        self.model = model
+        self.selector = BestCheckpoint(env, episodes, first_variant, seed=seed)
+
+    def learn(self, total_timesteps: int, reset_num_timesteps: bool = True, **kwargs: Any) -> "SelectBest":
+        """Train ``model`` for ``total_timesteps``, then score the result as a checkpoint."""
+        self.model.learn(total_timesteps, reset_num_timesteps=reset_num_timesteps, **kwargs)
+        self.selector.update(self.model.policy)
+        return self
+
+    def predict(self, obs: Any, state: Any = None, episode_start: Any = None, deterministic: bool = True):
+        """The best checkpoint's action (SB3 ``predict``); before any ``learn``, ``model``'s."""
+        if self.selector.best_policy is None:
+            return self.model.predict(obs, state, episode_start, deterministic)
+        return self.selector.predict(obs, state, episode_start, deterministic)
+
+    @property
+    def policy(self) -> Any:
+        """The policy that ``model`` trains (not the best checkpoint's frozen copy)."""
+        return self.model.policy
+
+    @property
+    def validation_env_steps(self) -> int:
+        """Env steps of the validation episodes so far."""
+        return self.selector.env_steps
+
+    def close(self) -> None:
+        """Close the validation env."""
+        self.selector.close()

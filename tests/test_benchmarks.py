@@ -183,6 +183,21 @@ def test_demo_cache_under_out_rebuilt_when_broken_and_budgets_recorded(tmp_path,
     assert "ThreeBoxes-v0 (pp)" in (tmp_path / "all.md").read_text()
 
 
+def test_demo_agents_select_the_best_checkpoint_and_count_its_steps(tmp_path):
+    suite = {"name": "sel", "seeds": [0], "eval_episodes": 2, "budget": 4, "curve_points": 2,
+             "cells": [{"env": "ThreeBoxes-v0", "env_kwargs": THREE_BOXES, "label": "pp",
+                        "agents": {"bc": {"demo_episodes": 2, "n_epochs": 2, "batch_size": 4, "select_episodes": 3}}}]}
+    path = tmp_path / "sel.json"
+    path.write_text(json.dumps(suite))
+    assert bench.main(_args(path, tmp_path)) == 0
+    bc = json.loads((tmp_path / "res" / "sel" / "ThreeBoxes-v0__pp" / "bc" / "seed0.json").read_text())
+    # 2 chunks x 3 validation episodes of horizon 3; BC itself takes no env step
+    assert bc["env_steps"] == 2 * 3 * 3
+    # 2 learn calls x 2 epochs x the batches, counted once (not once more through the wrapper)
+    assert bc["gradient_updates"] == 2 * 2 * int(np.ceil(bc["demo_transitions"] / 4))
+    assert len(bc["learning_curve"]) == 2
+
+
 def test_corrupt_cell_json_is_named_and_rerun(tmp_path, capsys):
     suite = _suite(tmp_path)
     args = ["--suite", str(suite), "--out", str(tmp_path / "res"), "--leaderboard", str(tmp_path / "lb.md"),

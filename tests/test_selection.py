@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import lfd_envs  # noqa: F401
-from lfd_agents.selection import BestCheckpoint
+from lfd_agents.selection import BestCheckpoint, SelectBest
 from lfd_envs.experts import make_expert
 from lfd_envs.tasks.three_boxes import ThreeBoxesEnv
 
@@ -42,6 +42,40 @@ def test_keeps_the_best_policy_and_counts_its_steps():
     expert.reset()
     assert not np.allclose(best.predict(obs)[0], idle)
     best.close()
+
+
+class _Swinging:
+    """A stand-in learner whose policy after each ``learn`` is the next of ``policies``."""
+
+    def __init__(self, policies):
+        self.policies, self.calls, self.policy = list(policies), [], None
+
+    def learn(self, total_timesteps, reset_num_timesteps=True):
+        self.calls.append((total_timesteps, reset_num_timesteps))
+        self.policy = self.policies[len(self.calls) - 1]
+        return self
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        return self.policy.predict(obs, state, episode_start, deterministic)
+
+
+def test_select_best_acts_with_the_best_checkpoint_while_the_learner_moves_on():
+    env = gym.make("ThreeBoxes-v0", **KW)
+    expert = make_expert(env)
+    idle = np.zeros(env.action_space.shape, np.float32)
+    good = _Fixed(lambda obs: expert.predict(obs)[0])
+    bad = _Fixed(lambda obs: idle)
+    agent = SelectBest(_Swinging([bad, good, bad]), env, episodes=2, first_variant=600)
+    obs, _ = env.reset(seed=0, options={"split": "train", "variant": 600})
+    for i in range(3):
+        agent.learn(10, reset_num_timesteps=i == 0)
+    assert agent.model.calls == [(10, True), (10, False), (10, False)]
+    assert agent.policy is bad  # the learner's current policy ...
+    assert agent.selector.best_policy.act is good.act  # ... is not the one that acts
+    expert.reset()
+    assert not np.allclose(agent.predict(obs)[0], idle)
+    assert agent.validation_env_steps == 3 * 2 * env.unwrapped.horizon
+    agent.close()
 
 
 def test_bad_input():
