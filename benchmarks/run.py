@@ -276,7 +276,8 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
     ``env_steps`` (steps in the training env), ``gradient_updates`` and ``demo_transitions``;
     ``final_metrics`` holds the per-episode :data:`REPORTED_METRICS` the env reports. A cell
     with ``coverage_steps`` N also records where the end-effector went during the first N
-    training steps (``coverage``, :class:`benchmarks.coverage.EndEffectorRecorder`).
+    training steps (``coverage``, :class:`benchmarks.coverage.EndEffectorRecorder`). An agent that
+    acts with its best checkpoint records each chunk's validation score (``validation_scores``).
     """
     import gymnasium as gym
     from tqdm import tqdm
@@ -338,10 +339,18 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
         "eval_wall_time_s": eval_time,
         "trained_steps": done_steps if trains else 0,
         **spent(agent, env),
+        **_validation_scores(agent),
         **({"coverage": recorder.summary()} if recorder is not None else {}),
         "environment": environment,
         "finished_at": time.strftime("%Y-%m-%d %H:%M:%S"),
     }
+
+
+def _validation_scores(agent: Any) -> dict[str, list[float]]:
+    """``{"validation_scores": [...]}``: the checkpoint-selection score of every training chunk
+    (agents that act with their best checkpoint), else ``{}``."""
+    scores = getattr(getattr(agent, "selector", None), "scores", None)
+    return {"validation_scores": [float(x) for x in scores]} if scores else {}
 
 
 def _accepts_reset(agent: Any) -> bool:

@@ -195,7 +195,7 @@ def test_demo_agents_select_the_best_checkpoint_and_count_its_steps(tmp_path):
     assert bc["env_steps"] == 2 * 3 * 3
     # 2 learn calls x 2 epochs x the batches, counted once (not once more through the wrapper)
     assert bc["gradient_updates"] == 2 * 2 * int(np.ceil(bc["demo_transitions"] / 4))
-    assert len(bc["learning_curve"]) == 2
+    assert len(bc["learning_curve"]) == 2 and len(bc["validation_scores"]) == 2  # one score per chunk
 
 
 def test_corrupt_cell_json_is_named_and_rerun(tmp_path, capsys):
