@@ -205,6 +205,8 @@ def _lfd_demo_agent(class_name: str) -> AgentFactory:
                 select_episodes: int = 0, select_first_variant: int = 400, **kwargs: Any):
         from benchmarks.demo_cache import CACHE_DIRNAME, demonstrations_for
 
+        if int(select_episodes) < 0:
+            raise ValueError(f"select_episodes must be >= 0 (0: no checkpoint selection), got {select_episodes!r}")
         cls = getattr(importlib.import_module("lfd_agents"), class_name)
         cache = Path(demo_cache) if demo_cache is not None else DEFAULT_RESULTS / CACHE_DIRNAME
         demos = demonstrations_for(env, int(demo_episodes), cache, policy=demo_policy,

@@ -4,9 +4,11 @@ import json
 import re
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
+import lfd_envs  # noqa: F401  (registers the env ids)
 from benchmarks import run as bench
 from benchmarks.agents import resolve_agent
 from benchmarks.stats import iqm_and_mean, probability_of_improvement, summarize
@@ -111,6 +113,8 @@ def test_bad_agent_and_env_errors(tmp_path, capsys):
     assert "valid:" in capsys.readouterr().err
     with pytest.raises(ValueError, match="valid suites are"):
         bench.load_suite("no-such-suite")
+    with pytest.raises(ValueError, match="select_episodes must be >= 0"):
+        resolve_agent("bc")(gym.make("ThreeBoxes-v0", **THREE_BOXES), 0, select_episodes=-1)
 
 
 def test_readme_third_party_example_runs(tmp_path, monkeypatch):
