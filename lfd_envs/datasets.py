@@ -104,12 +104,16 @@ def random_pick_place_policy(env: gym.Env) -> Any:
     return factory(env)
 
 
-def noisy_expert_policy(env: gym.Env, seed: int = 0, epsilon: float = 0.2, **expert_kwargs: Any) -> Any:
+def noisy_expert_policy(env: gym.Env, seed: int = 0, epsilon: float = 0.2, action_noise: float = 0.0,
+                        **expert_kwargs: Any) -> Any:
     """The scripted expert (built with ``expert_kwargs``) with random slips of probability
-    ``epsilon`` per step (:mod:`lfd_envs.experts.noisy`): demonstrations of controlled, lower quality."""
+    ``epsilon`` per step and Gaussian noise of standard deviation ``action_noise`` (half-ranges) on
+    its other actions (:mod:`lfd_envs.experts.noisy`): demonstrations of controlled, lower quality,
+    or (``epsilon`` 0, small ``action_noise``) demonstrations that also show how the expert
+    recovers from small deviations."""
     from lfd_envs.experts.noisy import noisy_expert_policy as factory
 
-    return factory(env, epsilon=epsilon, seed=seed, **expert_kwargs)
+    return factory(env, epsilon=epsilon, seed=seed, action_noise=action_noise, **expert_kwargs)
 
 
 POLICIES = {"expert": expert_policy, "random": RandomPolicy, "random_pick_place": random_pick_place_policy,

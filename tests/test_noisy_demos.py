@@ -36,6 +36,22 @@ def test_slip_rate_and_bounds():
     assert not np.any(EpsilonNoisyPolicy(_Constant(np.zeros(4)), space, 0.0).predict(None)[0])
 
 
+def test_gaussian_action_noise_is_zero_mean_scaled_to_the_range_and_clipped():
+    space = gym.spaces.Box(np.array([-1.0, 0.0]), np.array([1.0, 4.0]), dtype=np.float32)
+    inner = _Constant([0.0, 2.0])
+    policy = EpsilonNoisyPolicy(inner, space, epsilon=0.0, seed=1, action_noise=0.1)
+    actions = np.array([policy.predict(None)[0] for _ in range(4000)])
+    assert inner.calls == 4000
+    assert np.allclose(actions.mean(axis=0), [0.0, 2.0], atol=0.01)  # zero mean: a regression still fits the expert
+    assert np.allclose(actions.std(axis=0), [0.1, 0.2], rtol=0.05)  # 0.1 half-ranges in each dimension
+    at_bound = EpsilonNoisyPolicy(_Constant([1.0, 4.0]), space, epsilon=0.0, seed=1, action_noise=0.5)
+    clipped = np.array([at_bound.predict(None)[0] for _ in range(200)])
+    assert np.all(clipped <= space.high) and np.all(clipped >= space.low) and clipped.dtype == np.float32
+    for bad in (-0.1, float("nan")):
+        with pytest.raises(ValueError, match="action_noise"):
+            EpsilonNoisyPolicy(inner, space, 0.0, action_noise=bad)
+
+
 def test_bad_epsilon_and_space_rejected():
     space = gym.spaces.Box(-1.0, 1.0, (2,), np.float32)
     for eps in (-0.1, 1.5):
