@@ -6,13 +6,16 @@ loop, so it recovers from most slips; a slip that drops a grasped cloth or rope 
 moment is what makes some episodes fail. ``epsilon`` therefore sets the demonstrations' mean final
 p̂ between the expert's (``epsilon = 0``) and random's (``epsilon = 1``).
 
-``action_noise`` adds zero-mean Gaussian noise to every executed action instead (its standard
+``action_noise`` adds zero-mean Gaussian noise to every action that is not a slip (its standard
 deviation in units of half the action range; the result is clipped to the bounds), as noise
 injection into the demonstrator does (DART, Laskey et al. 2017): the closed-loop expert then
 visits states a little off its own path and records the actions that bring it back, which a
 policy fitted to its own noise-free path never sees. The recorded action is the executed one,
-so the transitions stay consistent for a critic, and a regression on them still fits the
-expert's mean action where the noise is not clipped::
+so the transitions stay consistent for a critic; a regression on them fits the expert's mean
+action where that action changes smoothly with the state. Near the expert's own thresholds
+(e.g. "settle over the corner, then drop") the noise mixes states on both sides: on the
+``-v1`` diagonal fold with ``action_noise`` 0.02, BC averaged the drop with the waiting and
+crept down without ever grasping (the ``repro-cpu-v1`` action-noise cell)::
 
     from lfd_envs.experts.noisy import noisy_expert_policy
     demonstrator = noisy_expert_policy(env, epsilon=0.2, seed=0)
