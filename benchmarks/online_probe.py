@@ -35,7 +35,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-__all__ = ["probe_cell", "find_cell", "HeldRate"]
+__all__ = ["probe_cell", "find_cell", "add_cell_arguments", "HeldRate"]
 
 DEFAULT_CACHE = Path(__file__).resolve().parent / "results" / "_probe"  #: offline states, reused
 
@@ -175,6 +175,15 @@ def probe_cell(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, age
     return out
 
 
+def add_cell_arguments(parser: argparse.ArgumentParser, default_agent: str) -> None:
+    """``--suite --env --label --agent --seed``: the options that pick a cell's learner (:func:`find_cell`)."""
+    parser.add_argument("--suite", required=True)
+    parser.add_argument("--env", required=True)
+    parser.add_argument("--label", help="the cell's label (when several cells have the env)")
+    parser.add_argument("--agent", default=default_agent)
+    parser.add_argument("--seed", type=int, default=0)
+
+
 def _table(results: dict[str, list[dict[str, Any]]]) -> str:
     steps = sorted({r["online_steps"] for recs in results.values() for r in recs if "online_steps" in r})
     lines = ["| variant | " + " | ".join(f"p̂ @{s}" for s in steps) + " |", "|---" * (len(steps) + 1) + "|"]
@@ -188,11 +197,7 @@ def main(argv: list[str] | None = None) -> int:
     from benchmarks.run import load_suite
 
     p = argparse.ArgumentParser(prog="python -m benchmarks.online_probe", description=__doc__.split("\n\n")[0])
-    p.add_argument("--suite", required=True)
-    p.add_argument("--env", required=True)
-    p.add_argument("--label", help="the cell's label (when several cells have the env)")
-    p.add_argument("--agent", default="dmfd")
-    p.add_argument("--seed", type=int, default=0)
+    add_cell_arguments(p, default_agent="dmfd")
     p.add_argument("--online-steps", type=int, default=2000)
     p.add_argument("--eval-every", type=int, default=1000)
     p.add_argument("--eval-episodes", type=int, default=10)

@@ -91,15 +91,11 @@ def main(argv: list[str] | None = None) -> int:
     import torch as th
 
     import lfd_envs  # noqa: F401
-    from benchmarks.online_probe import find_cell
+    from benchmarks.online_probe import add_cell_arguments, find_cell
     from benchmarks.run import load_suite
 
     p = argparse.ArgumentParser(prog="python -m benchmarks.trace_policy", description=__doc__.split("\n\n")[0])
-    p.add_argument("--suite", required=True)
-    p.add_argument("--env", required=True)
-    p.add_argument("--label", help="the cell's label (when several cells have the env)")
-    p.add_argument("--agent", default="bc")
-    p.add_argument("--seed", type=int, default=0)
+    add_cell_arguments(p, default_agent="bc")
     p.add_argument("--variants", type=int, nargs="+", default=[0])
     p.add_argument("--steps", type=int, default=40)
     p.add_argument("--load", help="parameters saved with agent.get_parameters() (e.g. an online_probe offline state)")
