@@ -58,15 +58,14 @@ def train_learner(env: Any, agent_name: str, agent_kwargs: dict[str, Any], seed:
     from benchmarks.demo_cache import CACHE_DIRNAME
 
     kwargs = {"demo_cache": str(DEFAULT_RESULTS / CACHE_DIRNAME), **agent_kwargs}
+    if load is not None and "offline_steps" in kwargs:
+        kwargs["offline_steps"] = 0  # the loaded parameters replace them
+    agent = resolve_agent(agent_name)(env, seed, **kwargs)
     if load is not None:
         import torch as th
 
-        if "offline_steps" in kwargs:
-            kwargs["offline_steps"] = 0  # the loaded parameters replace them
-        agent = resolve_agent(agent_name)(env, seed, **kwargs)
         agent.set_parameters(th.load(load))
         return agent
-    agent = resolve_agent(agent_name)(env, seed, **kwargs)
     if hasattr(agent, "set_logger"):
         agent.set_logger(configure(None, []))
     agent.learn(total_timesteps=0)  # BC: its epochs; DMfD / AWAC: the offline steps only

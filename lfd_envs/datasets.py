@@ -122,15 +122,19 @@ POLICIES = {"expert": expert_policy, "random": RandomPolicy, "random_pick_place"
 _SEEDED_POLICIES = (RandomPolicy, noisy_expert_policy)
 
 
-def _build_policy(factory: Any, env: gym.Env, seed: int, policy_kwargs: dict[str, Any]) -> Any:
-    return factory(env, seed, **policy_kwargs) if factory in _SEEDED_POLICIES else factory(env, **policy_kwargs)
+def _build_policy(factory: Any, name: str, env: gym.Env, seed: int, policy_kwargs: dict[str, Any]) -> Any:
+    """``factory``'s policy for ``env``; arguments it does not take are a ValueError naming them."""
+    try:
+        return factory(env, seed, **policy_kwargs) if factory in _SEEDED_POLICIES else factory(env, **policy_kwargs)
+    except TypeError as exc:
+        raise ValueError(f"policy {name!r} does not take {sorted(policy_kwargs)}: {exc}") from exc
 
 
 def make_policy(env: gym.Env, policy: str = "expert", seed: int = 0, **policy_kwargs: Any) -> Any:
     """The named demonstrator of :data:`POLICIES` for ``env`` (as :func:`collect` builds it)."""
     if policy not in POLICIES:
         raise ValueError(f"unknown policy {policy!r}; valid: {sorted(POLICIES)}")
-    return _build_policy(POLICIES[policy], env, seed, policy_kwargs)
+    return _build_policy(POLICIES[policy], policy, env, seed, policy_kwargs)
 
 
 # ---------------------------------------------------------------------- collection
@@ -276,10 +280,7 @@ def collect(
         raise ValueError("policy_kwargs apply to named policies only; bind them into your factory instead")
     env = gym.make(env_id, **env_kwargs)
     try:
-        agent = _build_policy(factory, env, seed, policy_kwargs)
-    except TypeError as exc:
-        env.close()
-        raise ValueError(f"policy {name!r} does not take {sorted(policy_kwargs)}: {exc}") from exc
+        agent = _build_policy(factory, name, env, seed, policy_kwargs)
     except ValueError:
         env.close()
         raise

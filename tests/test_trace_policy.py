@@ -43,3 +43,6 @@ def test_cli_refuses_a_missing_cell_and_bad_steps(capsys):
     assert trace_policy.main(["--suite", "repro-cpu-v1", "--env", "StraightenRope-v1", "--steps", "0"]) == 2
     with pytest.raises(ValueError, match="unknown policy"):
         trace_policy.demonstrator(gym.make("StraightenRope-v0", **ROPE), {"demo_policy": "nobody"})
+    with pytest.raises(ValueError, match="does not take"):  # as collect says it
+        trace_policy.demonstrator(gym.make("StraightenRope-v0", **ROPE),
+                                  {"demo_policy": "noisy_expert", "demo_policy_kwargs": {"sigma": 0.3}})
