@@ -8,7 +8,7 @@ default setting measured in the same run (these machines are noisy; the ratio is
 Settings: the engine default (2 substeps x 5 iterations, with tethers), the default without
 tethers, and "small steps" (many substeps of one iteration, no tethers, no extra collision pass,
 self-collision lists rebuilt every 10 substeps) with 20 and 40 substeps, and the ``-v1`` tasks'
-settings with resolution-aware substeps (``substeps_reference_resolution=40``: 20 up to 40
+settings, which scale their substeps with the resolution (``substeps_reference_resolution=40``: 20 up to 40
 particles per side, ``ceil(20 x (n / 40) ** 1.5)`` above, 57 at 80).
 """
 
@@ -29,7 +29,7 @@ SETTINGS: dict[str, SimParams] = {
     "default without tethers": SimParams(tethers=False),
     "small steps 20 x 1": SimParams(substeps=20, **SMALL_STEPS),
     "small steps 40 x 1": SimParams(substeps=40, **SMALL_STEPS),
-    "-v1 settings, substeps by resolution": SimParams(**FLEX_LIKE_SIM_OPTIONS, substeps_reference_resolution=40),
+    "-v1 settings (substeps by resolution)": SimParams(**FLEX_LIKE_SIM_OPTIONS),
 }
 
 

@@ -41,12 +41,16 @@ ENV_SPECS: dict[str, tuple[str, str | None, dict, int]] = {
 #: Engine settings of the ``-v1`` particle ids, closer to FleX than the ``-v0`` defaults: pickers
 #: are sphere colliders, the solver takes many small steps of one iteration without tethers
 #: (stiff cloth at 40 per side without long-range attachments), self-collision is rebuilt every
-#: 10 substeps and cloth and rope are 1 cm thick at every resolution. ``sim_options`` given to
-#: ``gymnasium.make`` for a ``-v1`` id are applied on top of these (``{"substeps_reference_resolution":
-#: 40}`` keeps finer cloth as stiff; see :class:`~lfd_envs.sim.SimParams`).
+#: 10 substeps and cloth and rope are 1 cm thick at every resolution. The solver follows the
+#: cloth's resolution so that it behaves about as at 40 particles per side: finer cloth runs more
+#: substeps (as stiff in stretch), coarser cloth bends more easily (folds stay folded); see
+#: ``substeps_reference_resolution`` and ``bend_reference_resolution`` of
+#: :class:`~lfd_envs.sim.SimParams`. ``sim_options`` given to ``gymnasium.make`` for a ``-v1`` id
+#: are applied on top of these (``None`` turns a reference off).
 FLEX_LIKE_SIM_OPTIONS: dict = {"substeps": 20, "iterations": 1, "tethers": False, "collision_passes": 0,
                                "self_collision_interval": 10, "picker_collision": True,
-                               "self_collision_distance": 0.01}
+                               "self_collision_distance": 0.01, "substeps_reference_resolution": 40,
+                               "bend_reference_resolution": 40}
 #: ``-v1`` pick-and-place speed limit (m/s): MAIL's 1 cm per 10 ms frame.
 FLEX_LIKE_PICK_PLACE_SPEED = 1.0
 

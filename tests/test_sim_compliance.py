@@ -57,12 +57,12 @@ def test_small_steps_hang_a_cloth_without_tethers():
 
 
 def test_resolution_aware_substeps_hang_an_80x80_cloth_as_stiffly_as_a_40x40_one():
-    """The -v1 solver with substeps_reference_resolution=40 runs 57 substeps for an 80x80 cloth:
+    """The -v1 solver (substeps_reference_resolution=40) runs 57 substeps for an 80x80 cloth:
     worst edge <= 10 %, mean <= 1 % (measured 5.1 % / 0.04 %); the same 20 substeps as 40x40
     leave 38 %."""
     from lfd_envs.registration import FLEX_LIKE_SIM_OPTIONS
 
-    v1 = hang(80, SimParams(**FLEX_LIKE_SIM_OPTIONS, substeps_reference_resolution=40))
+    v1 = hang(80, SimParams(**FLEX_LIKE_SIM_OPTIONS))
     assert v1["substeps"] == 57
     assert v1["worst"] <= 0.10 and v1["mean"] <= 0.01, v1
     fixed = hang(80, SimParams(substeps=20, **SMALL_STEPS), frames=120)
@@ -77,6 +77,31 @@ def test_resolution_aware_substeps():
     assert SimParams(substeps=20).for_resolution(80).substeps == 20  # no reference: unchanged
     with pytest.raises(ValueError):
         SimParams(substeps_reference_resolution=1)
+
+
+def _bend_scales(params: SimParams, side: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    b = SceneBuilder()
+    b.add_cloth(side, side, 0.3, 0.3, center=(0, 0, 0.1))
+    b.add_rope(10, 0.3, start=(0, 0, 0.3))
+    sim = ParticleSim(b, params=params, num_pickers=0)
+    return sim._con_kscale.numpy()[: sim._nnz], sim._con_type, sim._con_cloth_side
+
+
+def test_coarse_cloth_bends_more_easily_with_a_reference_resolution():
+    """(n / n_ref) ** exponent on the bend constraints of a cloth coarser than the reference;
+    stretch, shear, the rope and cloth at or above the reference are untouched."""
+    p = SimParams(bend_reference_spacing=None, bend_reference_resolution=40, bend_resolution_exponent=4.0)
+    scale, typ, side = _bend_scales(p, 20)
+    cloth_bend = (typ == 2) & (side == 20)
+    assert np.allclose(scale[cloth_bend], 0.5 ** 4)
+    assert np.allclose(scale[~cloth_bend], 1.0)  # stretch, shear and the rope's bends
+    assert ((typ == 2) & (side == 0)).any()  # the rope has bend constraints, left as they were
+    assert np.allclose(_bend_scales(p, 40)[0], 1.0)
+    assert np.allclose(_bend_scales(SimParams(bend_reference_spacing=None), 20)[0], 1.0)
+    with pytest.raises(ValueError):
+        SimParams(bend_reference_resolution=1)
+    with pytest.raises(ValueError):
+        SimParams(bend_resolution_exponent=-1.0)
 
 
 @pytest.mark.parametrize("value", [-1.0, float("nan"), "soft"])

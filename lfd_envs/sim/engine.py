@@ -53,6 +53,16 @@ def _next_pow2(n: int) -> int:
     return p
 
 
+def _cloth_side_of_constraints(builder: SceneBuilder, con_i: np.ndarray) -> np.ndarray:
+    """Per constraint: the particles along the longer side of the cloth its first particle
+    belongs to, 0 for constraints of other objects (ropes, boxes)."""
+    side = np.zeros(len(con_i), np.float64)
+    for cloth in builder.cloths:
+        inside = (con_i >= cloth.start) & (con_i < cloth.start + cloth.nx * cloth.ny)
+        side[inside] = max(cloth.nx, cloth.ny)
+    return side
+
+
 class ParticleSim:
     """Batched particle simulator (cloth, rope, rigid boxes, pickers).
 
@@ -148,6 +158,7 @@ class ParticleSim:
         self._box_of = wp.array(e0["box"], dtype=wp.int32, device=dev)
         pad = np.zeros(1, np.int32)
         self._con_type = e0["con_type"]
+        self._con_cloth_side = _cloth_side_of_constraints(builders[0], e0["con_i"])
         ij = np.stack([e0["con_i"], e0["con_j"]], axis=1) if nnz else np.zeros((1, 2), np.int32)
         self._con_ij = wp.array(ij.astype(np.int32), dtype=wp.vec2i, device=dev)
         self._rigid_start = wp.array(e0["rigid_start"] if B else np.zeros(1, np.int32), dtype=wp.int32, device=dev)
@@ -929,7 +940,8 @@ class ParticleSim:
 
     def _update_stiffness_scale(self) -> None:
         """Per-constraint stiffness factors: 1, except bend constraints longer than twice
-        ``params.bend_reference_spacing`` (see :class:`SimParams`)."""
+        ``params.bend_reference_spacing`` and those of cloth coarser than
+        ``params.bend_reference_resolution`` (see :class:`SimParams`)."""
         p, W, nnz = self._params, self._W, self._nnz
         if not nnz:
             return
@@ -939,6 +951,11 @@ class ParticleSim:
             bend = self._con_type == 2
             ratio = 2.0 * p.bend_reference_spacing / np.maximum(rest[:, bend], 1e-12)
             scale[:, bend] = np.minimum(1.0, ratio ** p.bend_spacing_exponent)
+        if p.bend_reference_resolution is not None:
+            side = self._con_cloth_side
+            coarse = (self._con_type == 2) & (side > 0) & (side < p.bend_reference_resolution)
+            factor = (side[coarse] / p.bend_reference_resolution) ** p.bend_resolution_exponent
+            scale[:, coarse] *= factor.astype(np.float32)
         self._write_slice(self._con_kscale, 0, scale.reshape(-1))
 
     def held_clearance(self) -> np.ndarray:
