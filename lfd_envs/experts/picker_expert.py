@@ -17,7 +17,7 @@ pick and place in empty air at the top of the workspace (pick_place).
 With colliding pickers (``SimParams.picker_collision``, the ``-v1`` ids) a delta-mode picker
 descends only until it rests on top of the particles under its pick point, and a descent or
 lowering also ends when the picker is stopped by what it pushes on (a box top). Experts with
-:attr:`PickerExpert.pick_place_on_top` (the rope's) also pick at that resting height in
+:attr:`PickerExpert.pick_place_on_top` (the rope's and ClothFold's) also pick at that resting height in
 pick_place mode and place that much higher.
 """
 
@@ -98,8 +98,8 @@ class PickerExpert:
     #: picker would chase it across the table.
     track_place: bool = False
     #: pick_place mode with colliding pickers: pick where the picker rests on top of the
-    #: particles and place that much higher (see :meth:`_rest_on_top`). Off by default: the cloth
-    #: experts' plans are tuned to picks at the cloth's height.
+    #: particles and place that much higher (see :meth:`_rest_on_top`). Off by default (on for the
+    #: rope and ClothFold): the other cloth experts' plans are tuned to picks at the cloth's height.
     pick_place_on_top: bool = False
 
     def __init__(self, env: Any, hold_speed: float = 0.6, tolerance: float = 1e-3, max_phase_steps: int = 80,
