@@ -17,8 +17,8 @@ pick and place in empty air at the top of the workspace (pick_place).
 With colliding pickers (``SimParams.picker_collision``, the ``-v1`` ids) a delta-mode picker
 descends only until it rests on top of the particles under its pick point, and a descent or
 lowering also ends when the picker is stopped by what it pushes on (a box top). Experts with
-:attr:`PickerExpert.pick_place_on_top` (the rope's and ClothFold's) also pick at that resting height in
-pick_place mode and place that much higher.
+:attr:`PickerExpert.pick_place_on_top` (the rope's and ClothFold's) also pick at that resting
+height in pick_place mode and place that much higher.
 """
 
 from __future__ import annotations
