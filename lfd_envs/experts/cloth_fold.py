@@ -12,7 +12,7 @@ With FleX-like physics (colliding pickers, the stiff small-step cloth; the ``-v1
   table, a colliding picker squeezes the cloth under it; traced on eval variant 1 with 40
   substeps, the half that should stay then slid 8.6 cm while the corners were lifted 5 cm.
 * one picker folds in one move: the middle of the left edge onto the middle of the right edge,
-  6 cm short (pick-and-place). A move that carries one corner onto its partner cannot keep
+  6 cm short (3 cm in delta mode). A move that carries one corner onto its partner cannot keep
   an inextensible cloth's other left corner in place (the only straight crease that maps a
   corner onto its mirror partner is the centre line, which takes the whole edge along), so on
   stiff cloth it drags the cloth; the corners follow the middle instead.
