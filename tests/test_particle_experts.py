@@ -206,16 +206,10 @@ def test_v1_one_picker_dry_cloth_expert_hangs_the_cloth_over_the_plank():
 
 
 def _fold_infos(env_id: str, variants: tuple[int, ...], **kwargs) -> list[dict]:
+    """Final infos of the pick-and-place expert's episodes on eval ``variants``."""
     env = gym.make(env_id, obs_mode="state", action_mode="pick_place", **kwargs)
-    expert, infos = make_expert(env), []
-    for k in variants:
-        obs, _ = env.reset(seed=0, options={"split": "eval", "variant": k})
-        done = False
-        while not done:
-            obs, _, term, trunc, info = env.step(expert.predict(obs)[0])
-            done = term or trunc
-        infos.append(info)
-    return infos
+    expert = make_expert(env)
+    return [play_episode(env, expert, seed=0, options={"variant": k, "split": "eval"}) for k in variants]
 
 
 def test_v1_cloth_fold_expert_does_not_squeeze_the_cloth_it_picks():
