@@ -108,3 +108,42 @@ def test_coarse_cloth_bends_more_easily_with_a_reference_resolution():
 def test_bad_compliance_is_refused(value):
     with pytest.raises((ValueError, TypeError)):
         SimParams(bend_compliance=value)
+
+
+def test_fine_cloth_bend_constraints_keep_the_reference_length_in_metres():
+    """Finer than the reference: bend constraints span round(2 n / n_ref) particles (4 at 80
+    against 40) and are scaled by the substeps at the reference over those that run; the rope
+    and cloth at the reference keep distance-2 constraints."""
+    p = SimParams(substeps=20, substeps_reference_resolution=40, bend_reference_spacing=None,
+                  bend_reference_resolution=40)
+    b = SceneBuilder()
+    c = b.add_cloth(80, 80, 0.3, 0.3, center=(0, 0, 0.1))
+    b.add_rope(10, 0.3, start=(0, 0, 0.3))
+    sim = ParticleSim(b, params=p, num_pickers=0)
+    e = b._export(40)
+    cloth_bend = (e["con_type"] == 2) & (e["con_i"] < c.count)
+    assert cloth_bend.sum() == 2 * 80 * (80 - 4)
+    assert np.allclose(e["con_rest"][cloth_bend], 4 * c.spacing[0])
+    assert np.all(np.abs(e["con_j"][cloth_bend] - e["con_i"][cloth_bend]) % 4 == 0)
+    rope_bend = (e["con_type"] == 2) & ~cloth_bend
+    assert np.allclose(e["con_rest"][rope_bend], 2 * 0.3 / 9)
+    scale, typ, side = _bend_scales(p, 80)
+    assert sim.substeps == 57
+    assert np.allclose(scale[(typ == 2) & (side == 80)], 20 / 57)
+    assert np.allclose(scale[~((typ == 2) & (side == 80))], 1.0)
+    assert b.bend_spans(40) == (4,) and b.bend_spans(None) == (2,)
+    # at or below the reference the layout is the one built without a reference
+    b40 = SceneBuilder()
+    b40.add_cloth(40, 40, 0.3, 0.3)
+    assert b40.topology_key(40) == b40.topology_key(None)
+
+
+def test_bend_span_is_fixed_at_construction():
+    b = SceneBuilder()
+    b.add_cloth(80, 80, 0.3, 0.3, center=(0, 0, 0.1))
+    sim = ParticleSim(b, params=SimParams(bend_reference_resolution=40), num_pickers=0)
+    with pytest.raises(ValueError, match="bend_reference_resolution"):
+        sim.set_params(SimParams())
+    assert sim.params.bend_reference_resolution == 40
+    sim.set_params(SimParams(bend_reference_resolution=40, bend_stiffness=0.5))  # same spans: fine
+

@@ -17,6 +17,8 @@ from typing import Sequence
 
 import numpy as np
 
+from .params import bend_span
+
 __all__ = [
     "SceneBuilder",
     "ClothHandle",
@@ -188,6 +190,9 @@ class SceneBuilder:
         # constraint chunks: (i, j, rest, type, colour) arrays; no two constraints of one colour
         # share a particle (graph colouring for the Gauss-Seidel solver)
         self._cons: list[tuple[np.ndarray, ...]] = []
+        # cloths that take bend constraints: (cloth index, grid, rows, cols, dx, dy); their span depends on
+        # the engine's ``bend_reference_resolution``, so they are made at export
+        self._cloth_bends: list[tuple] = []
         self._cache: dict | None = None
         self._static_boxes: list[StaticBox] = []
         self._rigid: list[dict] = []
@@ -236,6 +241,27 @@ class SceneBuilder:
                            np.full(ci.shape, typ, np.int32), np.asarray(color, np.int32)))
         self._cache = None
 
+    def _bend_chunks(self, reference_resolution: int | None) -> list[tuple[np.ndarray, ...]]:
+        """Bend constraint chunks of every cloth, spanning :func:`bend_span` particles (colours
+        8-11: constraint ``i -> i + k`` gets parity ``(i // k) % 2``, so no two of one colour
+        share a particle)."""
+        chunks = []
+        for _, grid, rows, cols, dx, dy in self._cloth_bends:
+            k = bend_span(max(grid.shape), reference_resolution)
+            for f, (gi, gj, rest, par) in enumerate((
+                    (grid[:, :-k], grid[:, k:], k * dx, (cols[:, :-k] // k) % 2),
+                    (grid[:-k, :], grid[k:, :], k * dy, (rows[:-k, :] // k) % 2))):
+                ci = gi.ravel().astype(np.int32)
+                chunks.append((ci, gj.ravel().astype(np.int32), np.full(ci.shape, float(rest)),
+                               np.full(ci.shape, BEND, np.int32), (8 + 2 * f + par.ravel()).astype(np.int32)))
+        return chunks
+
+    def bend_spans(self, reference_resolution: int | None = None) -> tuple[int, ...]:
+        """Span (particles) of each cloth's bend constraints under ``reference_resolution``
+        (``SimParams.bend_reference_resolution``); 0 for a cloth without bend constraints."""
+        spans = {c[0]: bend_span(max(c[1].shape), reference_resolution) for c in self._cloth_bends}
+        return tuple(spans.get(k, 0) for k in range(len(self.cloths)))
+
     def _new_object(self) -> int:
         self._num_objects += 1
         return self._num_objects - 1
@@ -259,7 +285,8 @@ class SceneBuilder:
             radius: Contact radius against ground/boxes (m); ``None`` = ``SimParams.particle_radius``.
             collision_distance: Self-collision distance (m); ``None`` = from ``SimParams``.
             self_collision: Whether this cloth takes part in particle-particle collisions.
-            bend: Add distance-2 bend constraints.
+            bend: Add bend constraints: distance-2 ones, or for cloth finer than the engine's
+                ``SimParams.bend_reference_resolution`` ones of the same length in metres.
 
         Returns:
             :class:`ClothHandle` with world-local indices.
@@ -298,14 +325,11 @@ class SceneBuilder:
             (grid[:-1, :-1], grid[1:, 1:], diag, SHEAR, rows[:-1, :-1] % 2),
             (grid[:-1, 1:], grid[1:, :-1], diag, SHEAR, rows[:-1, 1:] % 2),
         ]
-        if bend:
-            fams += [
-                (grid[:, :-2], grid[:, 2:], 2 * dx, BEND, (cols[:, :-2] // 2) % 2),
-                (grid[:-2, :], grid[2:, :], 2 * dy, BEND, (rows[:-2, :] // 2) % 2),
-            ]
         for f, (gi, gj, rest, typ, par) in enumerate(fams):
             # colours 0-3 stretch, 4-7 shear, 8-11 bend (one constraint type per colour)
             self._add_constraints(gi.ravel(), gj.ravel(), rest, typ, 2 * f + par.ravel())
+        if bend:
+            self._cloth_bends.append((len(self.cloths), grid, rows, cols, dx, dy))
         a = (jj[:-1, :-1] * nx + ii[:-1, :-1]).ravel() + start
         b = a + 1
         c = a + nx + 1
@@ -446,16 +470,18 @@ class SceneBuilder:
         self._cache = None
 
     # ------------------------------------------------------------------ export
-    def _export(self) -> dict:
-        """Flattened numpy description used by :class:`ParticleSim` (internal)."""
+    def _export(self, bend_reference_resolution: int | None = None) -> dict:
+        """Flattened numpy description used by :class:`ParticleSim` (internal); the bend
+        constraints follow ``bend_reference_resolution`` (``SimParams``)."""
         n = self.num_particles
         if n == 0:
             raise ValueError("SceneBuilder has no particles; add a cloth, rope or rigid box")
         p = self._p
-        if self._cache is not None:
-            return self._cache
-        if self._cons:
-            ci, cj, cr, ct, ccol = (np.concatenate([c[k] for c in self._cons]) for k in range(5))
+        if self._cache is not None and bend_reference_resolution in self._cache:
+            return self._cache[bend_reference_resolution]
+        cons = self._cons + self._bend_chunks(bend_reference_resolution)
+        if cons:
+            ci, cj, cr, ct, ccol = (np.concatenate([c[k] for c in cons]) for k in range(5))
         else:
             ci = cj = ct = ccol = np.zeros(0, np.int32)
             cr = np.zeros(0, np.float64)
@@ -495,12 +521,13 @@ class SceneBuilder:
             static_half_extents=np.array([s.half_extents for s in sb], np.float64).reshape(-1, 3),
             static_rot=np.array([s.rotation() for s in sb], np.float64).reshape(-1, 3, 3),
         )
-        self._cache = out
+        self._cache = {**(self._cache or {}), bend_reference_resolution: out}
         return out
 
-    def topology_key(self) -> str:
-        """Hash of everything that must match across the worlds of one batch."""
-        e = self._export()
+    def topology_key(self, bend_reference_resolution: int | None = None) -> str:
+        """Hash of everything that must match across the worlds of one batch (with the bend
+        constraints ``bend_reference_resolution`` gives, see :meth:`bend_spans`)."""
+        e = self._export(bend_reference_resolution)
         h = hashlib.sha1()
         for k in ("obj", "box", "con_i", "con_j", "con_type", "con_color", "rigid_start",
                   "rigid_count"):

@@ -110,10 +110,11 @@ class ParticleSim:
         self._use_graph = bool(use_graph)
         self._graph = None
         self._builders = list(builders)
-        exports = [b._export() for b in builders]
-        key0 = builders[0].topology_key()
+        self._bend_ref = bend_ref = params.bend_reference_resolution  # fixes the bend constraint layout
+        exports = [b._export(bend_ref) for b in builders]
+        key0 = builders[0].topology_key(bend_ref)
         for w, b in enumerate(builders[1:], start=1):
-            if b.topology_key() != key0:
+            if b.topology_key(bend_ref) != key0:
                 raise ValueError(f"builder of world {w} has a different topology than world 0 "
                                  "(particle count, constraints, objects and rigid boxes must match)")
         self._topology_key = key0
@@ -690,13 +691,17 @@ class ParticleSim:
             raise TypeError(f"params must be a SimParams, got {type(params).__name__}")
         if params.max_neighbors != self._K:
             raise ValueError("max_neighbors cannot change after construction")
+        spans = self._builders[0].bend_spans(params.bend_reference_resolution)
+        if spans != self._builders[0].bend_spans(self._bend_ref):
+            raise ValueError(f"bend_reference_resolution={params.bend_reference_resolution} changes the bend "
+                             f"constraints of this scene's cloth (spans {spans}); it is fixed at construction")
         self._given_params = params
         self._params = params.for_resolution(self._finest_cloth)
         self._graph = None
         self._particle_pass_structs = self._build_particle_pass_structs()
         self._compliance = self._build_compliance_structs()
         for w, b in enumerate(self._builders):
-            self._write_sc_radius(w, b._export())
+            self._write_sc_radius(w, b._export(self._bend_ref))
         self._update_grid_params()
         self._update_tethers()
         self._update_stiffness_scale()
@@ -819,10 +824,10 @@ class ParticleSim:
         w = self._check_world(world)
         if not isinstance(builder, SceneBuilder):
             raise TypeError("builder must be a SceneBuilder")
-        if builder.topology_key() != self._topology_key:
+        if builder.topology_key(self._bend_ref) != self._topology_key:
             raise ValueError("builder topology differs from the simulator's (particle count, "
                              "constraints, objects and rigid boxes must match)")
-        e = builder._export()
+        e = builder._export(self._bend_ref)
         if e["static_center"].shape[0] > self._S:
             raise ValueError(f"builder has {e['static_center'].shape[0]} static boxes but the "
                              f"simulator was built with {self._S} slots")
@@ -940,7 +945,7 @@ class ParticleSim:
 
     def _update_stiffness_scale(self) -> None:
         """Per-constraint stiffness factors: 1, except bend constraints longer than twice
-        ``params.bend_reference_spacing`` and those of cloth coarser than
+        ``params.bend_reference_spacing`` and those of cloth coarser or finer than
         ``params.bend_reference_resolution`` (see :class:`SimParams`)."""
         p, W, nnz = self._params, self._W, self._nnz
         if not nnz:
@@ -956,6 +961,9 @@ class ParticleSim:
             coarse = (self._con_type == 2) & (side > 0) & (side < p.bend_reference_resolution)
             factor = (side[coarse] / p.bend_reference_resolution) ** p.bend_resolution_exponent
             scale[:, coarse] *= factor.astype(np.float32)
+            fine = (self._con_type == 2) & (side > p.bend_reference_resolution)
+            # each frame projects the longer bend constraints about as much as at the reference
+            scale[:, fine] *= np.float32(self._given_params.substeps / p.substeps)
         self._write_slice(self._con_kscale, 0, scale.reshape(-1))
 
     def held_clearance(self) -> np.ndarray:
