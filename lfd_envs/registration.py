@@ -43,7 +43,8 @@ ENV_SPECS: dict[str, tuple[str, str | None, dict, int]] = {
 #: (stiff cloth at 40 per side without long-range attachments), self-collision is rebuilt every
 #: 10 substeps and cloth and rope are 1 cm thick at every resolution. The solver follows the
 #: cloth's resolution so that it behaves about as at 40 particles per side: finer cloth runs more
-#: substeps (as stiff in stretch), coarser cloth bends more easily (folds stay folded); see
+#: substeps (as stiff in stretch) and bend constraints of the same length in metres (spread
+#: the way it is at 40), coarser cloth bends more easily (folds stay folded); see
 #: ``substeps_reference_resolution`` and ``bend_reference_resolution`` of
 #: :class:`~lfd_envs.sim.SimParams`. ``sim_options`` given to ``gymnasium.make`` for a ``-v1`` id
 #: are applied on top of these (``None`` turns a reference off).

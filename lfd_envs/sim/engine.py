@@ -945,8 +945,9 @@ class ParticleSim:
 
     def _update_stiffness_scale(self) -> None:
         """Per-constraint stiffness factors: 1, except bend constraints longer than twice
-        ``params.bend_reference_spacing`` and those of cloth coarser or finer than
-        ``params.bend_reference_resolution`` (see :class:`SimParams`)."""
+        ``params.bend_reference_spacing``, bend and shear constraints of cloth coarser than
+        ``params.bend_reference_resolution`` and bend constraints of cloth finer than it (see
+        :class:`SimParams`)."""
         p, W, nnz = self._params, self._W, self._nnz
         if not nnz:
             return
@@ -958,7 +959,8 @@ class ParticleSim:
             scale[:, bend] = np.minimum(1.0, ratio ** p.bend_spacing_exponent)
         if p.bend_reference_resolution is not None:
             side = self._con_cloth_side
-            coarse = (self._con_type == 2) & (side > 0) & (side < p.bend_reference_resolution)
+            # bend constraints and cell diagonals (shear), which span a crease along a diagonal
+            coarse = (self._con_type >= 1) & (side > 0) & (side < p.bend_reference_resolution)
             factor = (side[coarse] / p.bend_reference_resolution) ** p.bend_resolution_exponent
             scale[:, coarse] *= factor.astype(np.float32)
             fine = (self._con_type == 2) & (side > p.bend_reference_resolution)

@@ -105,24 +105,27 @@ class SimParams:
             so the cloth bends about as easily per metre as at the reference resolution
             (default 0.02 m: a 0.75 m cloth of 40 x 40 particles, unchanged).  ``None`` disables.
         bend_spacing_exponent: Exponent of the bend stiffness scaling (dimensionless, >= 0).
-        bend_reference_resolution: Resolution-aware bending of coarse cloth.  ``None`` (default)
-            leaves the bend constraints as above.  Given ``n_ref``, the bend constraints of a
-            cloth with ``n < n_ref`` particles along its longer side get their stiffness
-            multiplied by ``(n / n_ref) ** bend_resolution_exponent`` (on top of the spacing
-            rule).  A solver of one iteration per substep converges further on the short
+        bend_reference_resolution: Resolution-aware bending.  ``None`` (default) leaves the
+            bend and shear constraints as above.  Given ``n_ref``, the bend and shear
+            constraints of a cloth with ``n < n_ref`` particles along its longer side get their
+            stiffness multiplied by ``(n / n_ref) ** bend_resolution_exponent`` (on top of the
+            spacing rule).  A solver of one iteration per substep converges further on the short
             particle chains of a coarse grid, so the same PBD stiffness bends less: at 20
             particles per side a folded cloth springs back open after the release (ClothFold's
             two-picker fold on eval variant 1: p-hat 0.43 after the fold, -0.09 two idle steps
             later), while the same particle spacing folds flat at 40 per side on a cloth twice
-            the size.  A cloth with ``n > n_ref`` gets bend constraints of the same length in
-            metres as the reference's instead of distance-2 ones (spanning
-            :func:`bend_span` particles: 4 at 80 against 40), with their stiffness multiplied by
-            the substeps at the reference over the substeps that run (20 / 57 at 80 with
-            ``substeps_reference_resolution``), so each frame projects them about as much as at
-            the reference.  Distance-2 constraints on fine cloth resist only bends over a few
-            millimetres: hung over DryCloth's plank by one edge, an 80 x 80 cloth bunched along
-            the plank (spread error 0.245 m against 0.001 at 36).  The span is part of the
-            scene's constraint layout, so it is fixed when the simulator is built.
+            the size.  The shear constraints (cell diagonals) span every crease that runs along
+            a cell diagonal: at 20 per side the diagonal fold's top layer ended 8.3 cm above the
+            table on average (2.0 cm at 40; 4.1 cm with the rule).  A cloth with ``n > n_ref`` gets bend constraints
+            of the same length in metres as the reference's instead of distance-2 ones
+            (spanning :func:`bend_span` particles: 4 at 80 against 40), with their stiffness
+            multiplied by the substeps at the reference over the substeps that run (20 / 57 at
+            80 with ``substeps_reference_resolution``), so each frame projects them about as
+            much as at the reference.  Distance-2 constraints on fine cloth resist only bends
+            over a few millimetres: hung over DryCloth's plank by one edge, an 80 x 80 cloth
+            bunched along the plank (spread error 0.242 m against 0.003 with the rule).  The
+            span is part of the scene's constraint layout, so it is fixed when the simulator is
+            built.
         bend_resolution_exponent: Exponent of that scaling (dimensionless, >= 0).
         tethers: Long-range attachments (Kim et al. 2012): each free cloth/rope particle may
             not get farther from the nearest (in rest space) pinned or grasped particle of its
