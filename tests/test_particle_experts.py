@@ -252,7 +252,7 @@ def test_v1_diagonal_fold_lies_flat_on_coarse_cloth():
     constraints span: at full shear stiffness the folded layer's particles ended 8.3 cm above
     the table on average (2.0 cm at 40) and the fold scored 0.80 (0.96 at 40). With the
     coarse-cloth rule on shear as well as bend constraints they end below 5 cm (eval variant 0:
-    4.1 cm, p-hat 0.91)."""
+    4.0 cm, p-hat 0.93)."""
     env = gym.make("ClothFoldDiagonalUnpinned-v1", obs_mode="state", action_mode="pick_place", resolution=20)
     info = play_episode(env, make_expert(env), seed=0, options={"variant": 0, "split": "eval"})
     task = env.unwrapped.batch.task

@@ -89,13 +89,15 @@ def _bend_scales(params: SimParams, side: int) -> tuple[np.ndarray, np.ndarray, 
 
 def test_coarse_cloth_bends_more_easily_with_a_reference_resolution():
     """(n / n_ref) ** exponent on the bend and shear constraints of a cloth coarser than the
-    reference; stretch, the rope and cloth at the reference are untouched."""
-    p = SimParams(bend_reference_spacing=None, bend_reference_resolution=40, bend_resolution_exponent=4.0)
+    reference (one exponent each); stretch, the rope and cloth at the reference are untouched."""
+    p = SimParams(bend_reference_spacing=None, bend_reference_resolution=40, bend_resolution_exponent=4.0,
+                  shear_resolution_exponent=3.0)
     scale, typ, side = _bend_scales(p, 20)
-    cloth_bend = (typ >= 1) & (side == 20)
-    assert ((typ == 1) & (side == 20)).any() and ((typ == 2) & (side == 20)).any()
+    cloth_bend, cloth_shear = (typ == 2) & (side == 20), (typ == 1) & (side == 20)
+    assert cloth_bend.any() and cloth_shear.any()
     assert np.allclose(scale[cloth_bend], 0.5 ** 4)
-    assert np.allclose(scale[~cloth_bend], 1.0)  # stretch and the rope's bends
+    assert np.allclose(scale[cloth_shear], 0.5 ** 3)
+    assert np.allclose(scale[~(cloth_bend | cloth_shear)], 1.0)  # stretch and the rope's bends
     assert ((typ == 2) & (side == 0)).any()  # the rope has bend constraints, left as they were
     assert np.allclose(_bend_scales(p, 40)[0], 1.0)
     assert np.allclose(_bend_scales(SimParams(bend_reference_spacing=None), 20)[0], 1.0)
@@ -103,6 +105,8 @@ def test_coarse_cloth_bends_more_easily_with_a_reference_resolution():
         SimParams(bend_reference_resolution=1)
     with pytest.raises(ValueError):
         SimParams(bend_resolution_exponent=-1.0)
+    with pytest.raises(ValueError):
+        SimParams(shear_resolution_exponent=float("nan"))
 
 
 @pytest.mark.parametrize("value", [-1.0, float("nan"), "soft"])

@@ -960,9 +960,10 @@ class ParticleSim:
         if p.bend_reference_resolution is not None:
             side = self._con_cloth_side
             # bend constraints and cell diagonals (shear), which span a crease along a diagonal
-            coarse = (self._con_type >= 1) & (side > 0) & (side < p.bend_reference_resolution)
-            factor = (side[coarse] / p.bend_reference_resolution) ** p.bend_resolution_exponent
-            scale[:, coarse] *= factor.astype(np.float32)
+            for typ, exponent in ((2, p.bend_resolution_exponent), (1, p.shear_resolution_exponent)):
+                coarse = (self._con_type == typ) & (side > 0) & (side < p.bend_reference_resolution)
+                factor = (side[coarse] / p.bend_reference_resolution) ** exponent
+                scale[:, coarse] *= factor.astype(np.float32)
             fine = (self._con_type == 2) & (side > p.bend_reference_resolution)
             # each frame projects the longer bend constraints about as much as at the reference
             scale[:, fine] *= np.float32(self._given_params.substeps / p.substeps)

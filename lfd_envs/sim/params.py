@@ -106,17 +106,17 @@ class SimParams:
             (default 0.02 m: a 0.75 m cloth of 40 x 40 particles, unchanged).  ``None`` disables.
         bend_spacing_exponent: Exponent of the bend stiffness scaling (dimensionless, >= 0).
         bend_reference_resolution: Resolution-aware bending.  ``None`` (default) leaves the
-            bend and shear constraints as above.  Given ``n_ref``, the bend and shear
-            constraints of a cloth with ``n < n_ref`` particles along its longer side get their
-            stiffness multiplied by ``(n / n_ref) ** bend_resolution_exponent`` (on top of the
-            spacing rule).  A solver of one iteration per substep converges further on the short
+            bend and shear constraints as above.  Given ``n_ref``, the bend constraints of a
+            cloth with ``n < n_ref`` particles along its longer side get their stiffness
+            multiplied by ``(n / n_ref) ** bend_resolution_exponent`` (on top of the spacing
+            rule) and its shear constraints by ``(n / n_ref) ** shear_resolution_exponent``.  A solver of one iteration per substep converges further on the short
             particle chains of a coarse grid, so the same PBD stiffness bends less: at 20
             particles per side a folded cloth springs back open after the release (ClothFold's
             two-picker fold on eval variant 1: p-hat 0.43 after the fold, -0.09 two idle steps
             later), while the same particle spacing folds flat at 40 per side on a cloth twice
             the size.  The shear constraints (cell diagonals) span every crease that runs along
             a cell diagonal: at 20 per side the diagonal fold's top layer ended 8.3 cm above the
-            table on average (2.0 cm at 40; 4.1 cm with the rule).  A cloth with ``n > n_ref`` gets bend constraints
+            table on average (2.0 cm at 40).  A cloth with ``n > n_ref`` gets bend constraints
             of the same length in metres as the reference's instead of distance-2 ones
             (spanning :func:`bend_span` particles: 4 at 80 against 40), with their stiffness
             multiplied by the substeps at the reference over the substeps that run (20 / 57 at
@@ -126,7 +126,12 @@ class SimParams:
             bunched along the plank (spread error 0.242 m against 0.003 with the rule).  The
             span is part of the scene's constraint layout, so it is fixed when the simulator is
             built.
-        bend_resolution_exponent: Exponent of that scaling (dimensionless, >= 0).
+        bend_resolution_exponent: Exponent of that scaling of the bend constraints
+            (dimensionless, >= 0).
+        shear_resolution_exponent: Exponent of that scaling of the shear constraints
+            (dimensionless, >= 0).  Softer shear lets a coarse cloth crease along a diagonal but
+            also lets it narrow where it hangs: 3 (default) is where both hold (see
+            ``docs/particle_tasks.md``).
         tethers: Long-range attachments (Kim et al. 2012): each free cloth/rope particle may
             not get farther from the nearest (in rest space) pinned or grasped particle of its
             object than their rest distance x (1 + ``tether_slack``).  Removes the "stretchy
@@ -216,6 +221,7 @@ class SimParams:
     bend_spacing_exponent: float = 2.0
     bend_reference_resolution: int | None = None
     bend_resolution_exponent: float = 4.0
+    shear_resolution_exponent: float = 3.0
 
     def __post_init__(self) -> None:
         def _finite(name: str) -> float:
@@ -278,6 +284,8 @@ class SimParams:
             _int("bend_reference_resolution", 2)
         if _finite("bend_resolution_exponent") < 0.0:
             raise ValueError("SimParams.bend_resolution_exponent must be >= 0")
+        if _finite("shear_resolution_exponent") < 0.0:
+            raise ValueError("SimParams.shear_resolution_exponent must be >= 0")
         if self.grasp_trigger not in GRASP_TRIGGERS:
             raise ValueError(f"SimParams.grasp_trigger must be one of {GRASP_TRIGGERS}, got {self.grasp_trigger!r}")
         if self.grasp_mode not in GRASP_MODES:
