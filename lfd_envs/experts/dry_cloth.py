@@ -11,7 +11,10 @@ which hang on the near side, are pulled apart along the plank (0.2 m either side
 0.04 m in front of the plank, 0.26 m high) to spread the cloth. With FleX-like physics
 (colliding pickers, the stiff small-step cloth; the ``-v1`` ids) one picker makes move (1)
 only, 0.2 m past the plank: the stiff cloth hangs spread by itself, and pulling its corners
-drags it off the plank. In delta mode the moves are executed by the closed-loop state
+drags it off the plank; in pick-and-place it then moves the crease back to the middle column
+while it is more than 2 cm of cloth off (picked on top of the plank, lifted towards the shorter
+side by the surplus): released 0.2 m past the plank, the cloth does not always slide back into
+balance, and the longer side's hem then lies on the table. In delta mode the moves are executed by the closed-loop state
 machine of :class:`~lfd_envs.experts.picker_expert.PickerExpert` while the horizon lasts.
 """
 
@@ -20,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from lfd_envs.experts.picker_expert import Move, PickerExpert
+from lfd_envs.tasks.dry_cloth import CLOTH_SIZE
 
 __all__ = ["DryClothExpert"]
 
@@ -34,6 +38,9 @@ FLEX_LIKE_SINGLE_OVER = (0.2, 0.55)
 GROUND = 0.03
 #: single picker: the opposite corners are pulled this far (m) along the plank from the middle
 SPREAD_HALF_WIDTH = 0.2
+#: single picker with FleX-like physics: a crease farther than this (m of cloth) from the middle
+#: column is moved back
+CREASE_TOLERANCE = 0.02
 
 
 class DryClothExpert(PickerExpert):
@@ -81,7 +88,29 @@ class DryClothExpert(PickerExpert):
                 (task.grid_index(np.array([0]), n - 1), low),
                 (task.grid_index(np.array([n - 1]), n - 1), high)]
 
+    def _centre_crease(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """One picker, ``-v1``: ``(particle, place)`` of a move that puts the crease over the
+        plank back on the middle column, or None when it is within ``CREASE_TOLERANCE``
+        m of cloth of it. The crease (the highest particle of the middle row) is lifted
+        ``|offset|`` of cloth towards the shorter side: released there, the longer side's
+        surplus falls back over the plank."""
+        task, n = self.task, self.task.resolution
+        row = task.grid_index(np.full(n, n // 2), np.arange(n))
+        crease = int(np.argmax(self.positions[row, 2]))
+        offset = (crease - 0.5 * (n - 1)) * CLOTH_SIZE / (n - 1)  # m; > 0: the far side hangs too long
+        if abs(offset) <= CREASE_TOLERANCE:
+            return None
+        plank = self._ctx()["plank"]
+        towards_near = np.array([np.cos(plank[3]), np.sin(plank[3]), 0.0])
+        length = abs(offset)
+        place = self.positions[row[crease]] + np.sign(offset) * towards_near * (0.87 * length)
+        place[2] += 0.5 * length
+        return row[crease:crease + 1], place[None]
+
     def next_move(self) -> Move | None:
+        if self._pickers_collide and self.num_pickers == 1 and self.mode == "pick_place" and self.moves_done:
+            correction = self._centre_crease()  # as often as the crease is off and steps are left
+            return None if correction is None else self._make_move(*correction, on_top=True)
         plan = self.plan()
         if self.moves_done >= len(plan):
             return None
@@ -89,14 +118,18 @@ class DryClothExpert(PickerExpert):
         return self._make_move(idx, places)
 
     def retarget(self, move: Move) -> Move:
-        return self._make_move(move.info["picks"], move.info["places"])
+        return self._make_move(move.info["picks"], move.info["places"], move.info.get("on_top", False))
 
-    def _make_move(self, idx: np.ndarray, places: np.ndarray) -> Move:
+    def _make_move(self, idx: np.ndarray, places: np.ndarray, on_top: bool = False) -> Move:
         pick = self.positions[idx].copy()
         pick[pick[:, 2] < GROUND, 2] = 0.0  # descend as low as the picker can go
+        if on_top:  # rest on top of the particle (picked from above the plank), place as high above
+            rest = self._resting_on_top(pick)
+            places = places + (rest[:, 2] - pick[:, 2])[:, None] * np.array([0.0, 0.0, 1.0])
+            pick = rest
         k = len(idx)
         full_pick, full_place = self.pickers.copy(), self.pickers.copy()
         full_pick[:k], full_place[:k] = pick, places
         active = np.zeros(self.num_pickers, dtype=bool)
         active[:k] = True
-        return Move(full_pick, full_place, active, info={"picks": idx, "places": places})
+        return Move(full_pick, full_place, active, info={"picks": idx, "places": places, "on_top": on_top})
