@@ -7,9 +7,16 @@ also carry points of the left and bottom edges onto their mirror partners.
 
 from __future__ import annotations
 
+import numpy as np
+
 from lfd_envs.experts.fold import FoldExpert
+from lfd_envs.experts.picker_expert import Move
 
 __all__ = ["ClothFoldDiagonalExpert"]
+
+#: pick-and-place, one colliding picker: a folded corner farther than this (m) from its partner
+#: is carried onto it again
+CORNER_TOLERANCE = 0.02
 
 
 class ClothFoldDiagonalExpert(FoldExpert):
@@ -35,3 +42,22 @@ class ClothFoldDiagonalExpert(FoldExpert):
                 return -0.015 if self.mode == "delta" else 0.0
             return -0.06 if self.mode == "delta" else -0.03
         return -0.07
+
+    def next_move(self) -> Move | None:
+        move = super().next_move()
+        if move is not None or not self._corrects_corner:
+            return move
+        (corner,), (partner,) = self.plan()[0]
+        pos = self.positions
+        if np.linalg.norm(pos[corner, :2] - pos[partner, :2]) <= CORNER_TOLERANCE:
+            return None
+        # the corner lies on top of the fold: pick it there and put it on its partner
+        pick = self._resting_on_top(pos[[corner]])
+        return self._make_move(np.array([corner]), np.array([partner]), pick=pick, shift=0.0)
+
+    @property
+    def _corrects_corner(self) -> bool:
+        """Pick-and-place with one colliding picker: the released corner may slide on past its
+        partner (more so the finer the cloth and the more substeps), so it is put back while
+        steps are left."""
+        return self.mode == "pick_place" and self.num_pickers == 1 and self._pickers_collide

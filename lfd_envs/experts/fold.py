@@ -49,10 +49,13 @@ class FoldExpert(PickerExpert):
 
     def retarget(self, move: Move) -> Move:
         picks = move.info["picks"]
-        return self._make_move(picks, move.info["places"], move.pick[:len(picks)], move.info["hang"])
+        return self._make_move(picks, move.info["places"], move.pick[:len(picks)], move.info["hang"],
+                               move.info["shift"])
 
     def _make_move(self, picks: np.ndarray, places: np.ndarray, pick: np.ndarray | None = None,
-                   hang: np.ndarray | None = None) -> Move:
+                   hang: np.ndarray | None = None, shift: float | None = None) -> Move:
+        """Carry particles ``picks`` onto ``places`` (picked at ``pick``, default the table under
+        them; placed ``shift`` m along the carry, default :attr:`place_shift`)."""
         pos = self.positions
         if pick is None:
             pick = pos[picks].copy()
@@ -63,13 +66,15 @@ class FoldExpert(PickerExpert):
             # it pop on release)
             hang = self.workspace.clip(pick)[:, 2] - pos[picks, 2]
         place = pos[places].copy()
-        if self.place_shift:
+        shift = self.place_shift if shift is None else shift
+        if shift:
             d = place[:, :2] - pick[:, :2]
-            place[:, :2] += self.place_shift * d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
+            place[:, :2] += shift * d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-9)
         place[:, 2] += hang + self.clearance
         p = self.num_pickers
         active = np.zeros(p, dtype=bool)
         active[:len(picks)] = True
         full_pick, full_place = self.pickers.copy(), self.pickers.copy()
         full_pick[:len(picks)], full_place[:len(picks)] = pick, place
-        return Move(full_pick, full_place, active, info={"picks": picks, "places": places, "hang": hang})
+        return Move(full_pick, full_place, active,
+                    info={"picks": picks, "places": places, "hang": hang, "shift": shift})
