@@ -14,8 +14,9 @@ only, 0.2 m past the plank: the stiff cloth hangs spread by itself, and pulling 
 drags it off the plank; in pick-and-place it then moves the crease back to the middle column
 while it is more than 2 cm of cloth off (picked on top of the plank, lifted towards the shorter
 side by the surplus): released 0.2 m past the plank, the cloth does not always slide back into
-balance, and the longer side's hem then lies on the table. In delta mode the moves are executed by the closed-loop state
-machine of :class:`~lfd_envs.experts.picker_expert.PickerExpert` while the horizon lasts.
+balance, and the longer side's hem then lies on the table. In delta mode the moves are
+executed by the closed-loop state machine of
+:class:`~lfd_envs.experts.picker_expert.PickerExpert` while the horizon lasts.
 """
 
 from __future__ import annotations
