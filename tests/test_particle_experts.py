@@ -239,12 +239,10 @@ def test_v1_dry_cloth_expert_spreads_fine_cloth_along_the_plank():
     """At MAIL's 80 particles per side the -v1 bend constraints keep the 40-per-side length in
     metres: hung over the plank by one edge the cloth stays spread along it (eval variant 0:
     spread error 0.003 m, p-hat 1.00). With distance-2 bend constraints it bunches along the
-    plank (0.242 m, p-hat 0.76)."""
+    plank (0.242 m, p-hat 0.76; measured with ``sim_options={"bend_reference_resolution": None}``,
+    not repeated here: an 80-per-side episode takes about 20 s)."""
     info, = _fold_infos("DryCloth-v1", (0,), num_pickers=1, resolution=80)
     assert info["spread_error"] < 0.05 and info["normalized_performance"] > 0.85, info
-    bunched, = _fold_infos("DryCloth-v1", (0,), num_pickers=1, resolution=80,
-                           sim_options={"bend_reference_resolution": None})
-    assert bunched["spread_error"] > 0.15, bunched
 
 
 def test_v1_diagonal_fold_lies_flat_on_coarse_cloth():
