@@ -124,13 +124,12 @@ class DryClothExpert(PickerExpert):
     def _make_move(self, idx: np.ndarray, places: np.ndarray, on_top: bool = False) -> Move:
         pick = self.positions[idx].copy()
         pick[pick[:, 2] < GROUND, 2] = 0.0  # descend as low as the picker can go
-        if on_top:  # rest on top of the particle (picked from above the plank), place as high above
-            rest = self._resting_on_top(pick)
-            places = places + (rest[:, 2] - pick[:, 2])[:, None] * np.array([0.0, 0.0, 1.0])
-            pick = rest
         k = len(idx)
         full_pick, full_place = self.pickers.copy(), self.pickers.copy()
         full_pick[:k], full_place[:k] = pick, places
         active = np.zeros(self.num_pickers, dtype=bool)
         active[:k] = True
-        return Move(full_pick, full_place, active, info={"picks": idx, "places": places, "on_top": on_top})
+        move = Move(full_pick, full_place, active, info={"picks": idx, "places": places, "on_top": on_top})
+        if on_top:  # picked from above the plank: rest on top of the particle, place as high above
+            self._rest_on_top(move)
+        return move

@@ -190,8 +190,8 @@ class SceneBuilder:
         # constraint chunks: (i, j, rest, type, colour) arrays; no two constraints of one colour
         # share a particle (graph colouring for the Gauss-Seidel solver)
         self._cons: list[tuple[np.ndarray, ...]] = []
-        # cloths that take bend constraints: (cloth index, grid, rows, cols, dx, dy); their span depends on
-        # the engine's ``bend_reference_resolution``, so they are made at export
+        # cloths that take bend constraints: (cloth index, particle grid, dx, dy); their span depends
+        # on the engine's ``bend_reference_resolution``, so they are made at export
         self._cloth_bends: list[tuple] = []
         self._cache: dict | None = None
         self._static_boxes: list[StaticBox] = []
@@ -246,8 +246,9 @@ class SceneBuilder:
         8-11: constraint ``i -> i + k`` gets parity ``(i // k) % 2``, so no two of one colour
         share a particle)."""
         chunks = []
-        for _, grid, rows, cols, dx, dy in self._cloth_bends:
+        for _, grid, dx, dy in self._cloth_bends:
             k = bend_span(max(grid.shape), reference_resolution)
+            rows, cols = np.indices(grid.shape)
             for f, (gi, gj, rest, par) in enumerate((
                     (grid[:, :-k], grid[:, k:], k * dx, (cols[:, :-k] // k) % 2),
                     (grid[:-k, :], grid[k:, :], k * dy, (rows[:-k, :] // k) % 2))):
@@ -329,7 +330,7 @@ class SceneBuilder:
             # colours 0-3 stretch, 4-7 shear, 8-11 bend (one constraint type per colour)
             self._add_constraints(gi.ravel(), gj.ravel(), rest, typ, 2 * f + par.ravel())
         if bend:
-            self._cloth_bends.append((len(self.cloths), grid, rows, cols, dx, dy))
+            self._cloth_bends.append((len(self.cloths), grid, dx, dy))
         a = (jj[:-1, :-1] * nx + ii[:-1, :-1]).ravel() + start
         b = a + 1
         c = a + nx + 1
