@@ -21,7 +21,10 @@ def make_flex_like(entry_point: str, **kwargs: Any) -> Any:
     """Build the env class at ``entry_point`` (``"module:Class"``) with the ``-v1`` settings."""
     module, _, name = entry_point.partition(":")
     cls = getattr(importlib.import_module(module), name)
-    kwargs["sim_options"] = {**FLEX_LIKE_SIM_OPTIONS, **dict(kwargs.get("sim_options") or {})}
+    given = kwargs.get("sim_options")
+    if given is not None and not isinstance(given, dict):
+        raise ValueError(f"sim_options must be a dict of SimParams fields, got {type(given).__name__}")
+    kwargs["sim_options"] = {**FLEX_LIKE_SIM_OPTIONS, **(given or {})}
     kwargs.setdefault("pick_place_speed", FLEX_LIKE_PICK_PLACE_SPEED)
     return cls(**kwargs)
 

@@ -122,3 +122,82 @@ def test_render_size_sets_rgb_array_frames(env_id, kwargs, size, shape):
     env = gym.make(env_id, render_mode="rgb_array", render_size=size, **kwargs)
     env.reset(seed=0)
     assert env.render().shape == shape
+
+
+@pytest.mark.parametrize("env_id,kwargs,match", [
+    ("ClothFold-v0", dict(PARTICLE, sim_options={"substeps": 10 ** 7}), "substeps"),
+    ("ClothFold-v1", dict(PARTICLE, sim_options={"iterations": 10 ** 7}), "iterations"),
+    ("ClothFold-v0", dict(PARTICLE, sim_options={"max_neighbors": 10 ** 9}), "max_neighbors"),
+    ("DryCloth-v1", dict(obs_mode="state", sim_options={"picker_radius": 1e6}), "picker_radius"),
+    ("NistBoardInsert-v0", dict(obs_mode="state", action_repeat=10 ** 9), "action_repeat"),
+    ("ClothFold-v1", dict(PARTICLE, sim_options="x"), "sim_options"),
+    ("ClothFold-v0", dict(PARTICLE, sim_options="x"), "sim_options"),
+])
+def test_unbounded_settings_are_refused_quickly(env_id, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        gym.make(env_id, **kwargs)
+
+
+@pytest.mark.parametrize("env_id,kwargs", [
+    ("Push2DObstacle-v0", {}),
+    ("NistBoardInsert-v0", dict(obs_mode="state")),
+    ("ClothFold-v0", PARTICLE),
+])
+@pytest.mark.parametrize("seed,options,match", [
+    (True, None, "seed"),
+    (-1, None, "seed"),
+    ("3", None, "seed"),
+    (None, [("split", "train")], "options must be a dict"),
+    (None, "train", "options must be a dict"),
+    (None, 5, "options must be a dict"),
+])
+def test_bad_seed_or_options_type_is_refused_unchanged(env_id, kwargs, seed, options, match):
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=0)
+    before_rng, before_state = rng_state(env), env.unwrapped.get_state()
+    with pytest.raises(ValueError, match=match):
+        env.reset(seed=seed, options=options)
+    assert rng_state(env) == before_rng
+    after = env.unwrapped.get_state()
+    assert all(np.array_equal(before_state[k], after[k]) for k in before_state)
+
+
+def test_vector_reset_refuses_bool_seed_and_non_dict_options():
+    venv = gym.make_vec("ClothFold-v0", num_envs=2, vectorization_mode="vector_entry_point", **PARTICLE)
+    venv.reset(seed=0)
+    with pytest.raises(ValueError, match="seed"):
+        venv.reset(seed=True)
+    with pytest.raises(ValueError, match="options must be a dict"):
+        venv.reset(options="train")
+
+
+def test_nist_single_camera_name_means_that_camera():
+    """A plain string names one camera (documented), it is not split into letters."""
+    env = gym.make("NistBoardInsert-v0", cameras="wrist", image_size=16)
+    assert env.unwrapped.cameras == ("wrist",)
+    assert "wrist" in env.observation_space.spaces and "workspace" not in env.observation_space.spaces
+
+
+@pytest.mark.parametrize("env_id,kwargs", [
+    ("Push2DObstacle-v0", {}),
+    ("NistBoardInsert-v0", dict(obs_mode="state")),
+    ("ClothFold-v0", PARTICLE),
+])
+def test_closed_env_refuses_step_render_and_reset(env_id, kwargs):
+    env = gym.make(env_id, render_mode="rgb_array", render_size=16, **kwargs)
+    env.reset(seed=0)
+    env.close()
+    for call in (lambda: env.step(env.action_space.sample()), env.render, lambda: env.reset(seed=0)):
+        with pytest.raises(RuntimeError, match="close"):
+            call()
+
+
+def test_closed_vector_env_refuses_step_and_render():
+    venv = gym.make_vec("ClothFold-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                        render_mode="rgb_array", render_size=16, **PARTICLE)
+    venv.reset(seed=0)
+    venv.close()
+    with pytest.raises(RuntimeError, match="close"):
+        venv.step(venv.action_space.sample())
+    with pytest.raises(RuntimeError, match="close"):
+        venv.render()

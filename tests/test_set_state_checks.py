@@ -143,3 +143,80 @@ def test_vector_env_set_state_checks_before_changing():
     state = single.unwrapped.get_state()
     base.set_state(0, state)  # a single env's state is accepted
     assert same_state(base.get_state(0), state)
+
+
+MUJOCO_IDS = [("Push2DObstacle-v0", {}), ("SawyerPushObstacle-v0", {}), ("SawyerLiftObstacle-v0", {}),
+              ("SawyerAssemblyObstacle-v0", {}), ("NistBoardInsert-v0", dict(obs_mode="state"))]
+
+
+def shifted(key, delta, index=None):
+    """A change for :func:`edited`: ``state[key] + delta`` (only entry ``index`` when given)."""
+    def change(state):
+        value = np.array(state[key], dtype=np.float64, copy=True)
+        if index is None:
+            value = value + delta
+        else:
+            value[index] = delta
+        return value
+    return change
+
+
+@pytest.mark.parametrize("env_id,kwargs", MUJOCO_IDS)
+def test_mujoco_set_state_refuses_impossible_values_unchanged(env_id, kwargs, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    env = gym.make(env_id, **kwargs)
+    env.reset(seed=0)
+    env.step(env.action_space.sample())
+    base = env.unwrapped
+    good = base.get_state()
+    bad = [("sim/qpos", shifted("sim/qpos", 1e6, 0)), ("sim/qpos", shifted("sim/qpos", 1e10)),
+           ("sim/qvel", shifted("sim/qvel", 1e12, 0)), ("sim/ctrl", shifted("sim/ctrl", 1e9))]
+    if "sim/mocap_quat" in good and good["sim/mocap_quat"].size:
+        bad.append(("sim/mocap_quat", lambda s: np.zeros_like(s["sim/mocap_quat"])))
+    for key, change in bad:
+        assert_rejected(base, edited(good, **{key.replace("/", "__"): change(good)}), ValueError, key)
+    base.set_state(good)  # the valid state still goes through
+    assert same_state(base.get_state(), good)
+
+
+def test_free_joint_zero_quaternion_is_refused():
+    env = gym.make("SawyerLiftObstacle-v0")
+    env.reset(seed=0)
+    base = env.unwrapped
+    good = base.get_state()
+    qpos = good["sim/qpos"].copy()
+    qpos[3:7] = 0.0  # the free joint of the object: position 0:3, quaternion 3:7
+    assert_rejected(base, edited(good, sim__qpos=qpos), ValueError, r"sim/qpos.*quaternion")
+
+
+@pytest.mark.parametrize("env_id,kwargs", [("ClothFold-v0", dict(resolution=8)), ("StraightenRope-v1", {}),
+                                           ("ThreeBoxes-v0", {})])
+def test_particle_set_state_refuses_fast_or_buried_particles_unchanged(env_id, kwargs):
+    env = gym.make(env_id, obs_mode="state", **kwargs)
+    env.reset(seed=0)
+    base = env.unwrapped
+    good = base.get_state()
+    assert_rejected(base, edited(good, sim__velocities=np.full_like(good["sim/velocities"], 1e12)), ValueError,
+                    "sim/velocities.*speed")
+    below = good["sim/positions"] - np.array([0.0, 0.0, 1.0], np.float32)
+    assert_rejected(base, edited(good, sim__positions=below), ValueError, "sim/positions.*below the table")
+    base.set_state(good)
+    assert same_state(base.get_state(), good)
+
+
+def test_three_boxes_refuses_zero_quaternions_and_boxes_inside_boxes():
+    env = gym.make("ThreeBoxes-v0", obs_mode="state")
+    env.reset(seed=0)
+    base = env.unwrapped
+    good = base.get_state()
+    assert_rejected(base, edited(good, sim__box_quat=np.zeros_like(good["sim/box_quat"])), ValueError,
+                    "sim/box_quat.*unit quaternion")
+    move = good["sim/box_pos"][0] - good["sim/box_pos"][1]  # box 1 onto box 0's centre
+    inside = good["sim/positions"].copy()
+    inside[base.task.box_slices[1]] += move
+    pose = good["sim/box_pos"].copy()
+    pose[1] += move
+    assert_rejected(base, edited(good, sim__positions=inside, sim__box_pos=pose), ValueError,
+                    "boxes 0 and 1 interpenetrate")
+    assert_rejected(base, edited(good, sim__positions=inside), ValueError, "sim/positions.*interpenetrate")
+    base.set_state(good)

@@ -9,6 +9,7 @@ seeding, the train/eval variant split, observation modes, action checking and cl
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -39,13 +40,32 @@ def check_render_mode(render_mode: Any) -> str | None:
     return render_mode
 
 
-def check_reset_options(options: dict[str, Any] | None) -> dict[str, Any]:
+def reset_options_dict(options: Any) -> dict[str, Any]:
+    """Copy of ``reset`` ``options`` (``{}`` for None); ``ValueError`` unless a dict or None."""
+    if options is None:
+        return {}
+    if not isinstance(options, Mapping):
+        raise ValueError(f"options must be a dict such as {{'split': 'eval', 'variant': 3}} or None, "
+                         f"got {type(options).__name__}")
+    return dict(options)
+
+
+def check_reset_options(options: Any) -> dict[str, Any]:
     """Copy of ``reset`` ``options`` (``{}`` for None); ``ValueError`` naming unknown keys."""
-    options = dict(options or {})
+    options = reset_options_dict(options)
     unknown = sorted(set(options) - set(RESET_OPTIONS))
     if unknown:
         raise ValueError(f"unknown reset options {unknown}; valid options are {list(RESET_OPTIONS)}")
     return options
+
+
+def check_seed(seed: Any) -> int | None:
+    """``seed`` as an int if it is None or a non-negative int (bools refused), else ``ValueError``."""
+    if seed is None:
+        return None
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be None or a non-negative int, got {seed!r}")
+    return int(seed)
 
 
 def observation_space(obs_mode: str, image_size: tuple[int, int], state_space: spaces.Space,
@@ -127,6 +147,7 @@ class LfdEnv(StrictInitKwargs, gym.Env):
         self._p0 = 0.0
         self._prev_perf = 0.0
         self._episode_count = 0
+        self._closed = False
 
     def _init_contract(self, **contract: Any) -> None:
         """Former name of ``LfdEnv.__init__(self, **contract)`` (kept for envs written against it)."""
@@ -206,8 +227,9 @@ class LfdEnv(StrictInitKwargs, gym.Env):
         return split, k
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        self._check_open("reset")
         split, k = self._check_reset(options)  # before seeding: a failed reset changes nothing
-        super().reset(seed=seed)
+        super().reset(seed=check_seed(seed))
         if k is None:
             k = int(self.np_random.integers(self.variants.size(split)))
         rng = self.variants.rng(split, k)
@@ -219,6 +241,7 @@ class LfdEnv(StrictInitKwargs, gym.Env):
         return self._observation(), self._info(self._p0)
 
     def step(self, action: Any):
+        self._check_open("step")
         if self._variant_index < 0:
             raise RuntimeError("call reset() before step()")
         action = self.validate_action(action)
@@ -233,11 +256,22 @@ class LfdEnv(StrictInitKwargs, gym.Env):
         return self._observation(), float(reward), terminated, truncated, info
 
     def render(self) -> np.ndarray | None:
+        self._check_open("render")
         if self.render_mode != "rgb_array":
             return None
         return self._render(*self.render_size)
 
+    def close(self) -> None:
+        """Release the env's resources; ``reset``, ``step`` and ``render`` then raise."""
+        self._closed = True
+        super().close()
+
     # ------------------------------------------------------------------ helpers
+    def _check_open(self, call: str) -> None:
+        """``RuntimeError`` if :meth:`close` was called."""
+        if getattr(self, "_closed", False):
+            raise RuntimeError(f"{call}() after close(): this env is closed; make a new one")
+
     def validate_action(self, action: Any) -> np.ndarray:
         """Check shape and finiteness (``ValueError`` otherwise) and clip to the bounds."""
         space = self.action_space

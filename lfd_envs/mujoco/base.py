@@ -68,6 +68,7 @@ from lfd_envs.core.base_env import LfdEnv
 from lfd_envs.core.errors import check_bool, check_choice
 from lfd_envs.core.state import check_range
 from lfd_envs.mujoco.rendering import make_renderer
+from lfd_envs.mujoco.state_values import check_mujoco_state
 
 with contextlib.redirect_stderr(io.StringIO()):  # gymnasium-robotics prints a notice about its own envs
     from gymnasium_robotics.core import GoalEnv
@@ -424,6 +425,7 @@ class MujocoEnv(LfdEnv):
 
     def _check_sim_state(self, sim: dict[str, np.ndarray]) -> None:
         check_range("sim/time", sim["time"], 0.0)
+        check_mujoco_state(self.model, sim)
 
     def _get_task_state(self) -> dict[str, np.ndarray]:
         """Task extras saved with the simulator state (e.g. the goal). Default: none."""

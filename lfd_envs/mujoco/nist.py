@@ -61,17 +61,19 @@ from typing import Any, ClassVar, Sequence
 import numpy as np
 from gymnasium import spaces
 
-from lfd_envs.core.base_env import LfdEnv
+from lfd_envs.core.base_env import LfdEnv, check_seed, reset_options_dict
 from lfd_envs.core.errors import as_real_array, check_bool, check_choice, check_float, check_int_range, check_str
 from lfd_envs.core.state import check_range
 from lfd_envs.mujoco import nist_board as board
 from lfd_envs.mujoco.rendering import configure_gl_backend, make_renderer
+from lfd_envs.mujoco.state_values import check_mujoco_state
 
 configure_gl_backend()
 import mujoco  # noqa: E402  (after the GL backend is chosen)
 
 ACTION_BIN = 0.0003  #: token bin width (m), thesis §6.2.2
 FRAME_SKIP = 20  #: physics steps per control step (0.04 s)
+MAX_ACTION_REPEAT = 1000  #: largest ``action_repeat`` (40 s of physics per env step)
 MAX_TARGET_ERROR = 0.01  #: commanded target stays within this distance (per axis) of the tip
 START_HALF_XY = 0.06
 START_Z = (0.01, 0.09)  #: start height range above the board top
@@ -156,8 +158,10 @@ class NistBoardInsertEnv(LfdEnv):
         obs_mode: ``"image"``, ``"state+image"`` or ``"state"``.
         action_mode: ``"continuous"`` or ``"tokens"``.
         image_size: ``(height, width)`` of each camera image (or an int for square images).
-        cameras: which of ``("workspace", "wrist")`` to render.
-        action_repeat: control steps per env step (the same delta each time).
+        cameras: which of ``("workspace", "wrist")`` to render: a sequence of these names, or one
+            name as a plain string (``"wrist"`` means ``("wrist",)``, like ``instruction``).
+        action_repeat: control steps per env step (the same delta each time; at most
+            :data:`MAX_ACTION_REPEAT`).
         max_delta: largest commanded motion per control step and axis (m).
         horizon: env steps before truncation.
         success_bonus: reward added on the successful step.
@@ -196,7 +200,7 @@ class NistBoardInsertEnv(LfdEnv):
         self.fit = check_choice("fit", fit, ("loose", "tight"))
         self.action_mode = check_choice("action_mode", action_mode, ("continuous", "tokens"))
         self.cameras = self._check_cameras(cameras)
-        self.action_repeat = check_int_range("action_repeat", action_repeat, 1)
+        self.action_repeat = check_int_range("action_repeat", action_repeat, 1, MAX_ACTION_REPEAT)
         self.max_delta = check_float("max_delta", max_delta, ACTION_BIN, MAX_TARGET_ERROR)
         self.success_bonus = check_float("success_bonus", success_bonus)
         antialias = check_bool("antialias", antialias)
@@ -335,7 +339,9 @@ class NistBoardInsertEnv(LfdEnv):
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """Gymnasium reset; ``options`` may also hold ``"instruction"`` (the task of this episode).
         Every option is checked before anything (the seed included) changes."""
-        options = dict(options or {})
+        self._check_open("reset")
+        check_seed(seed)
+        options = reset_options_dict(options)
         forced = options.pop("instruction", None)
         task = None if forced is None else parse_task(check_str("options['instruction']", forced), self.fit)
         self._check_reset(options)
@@ -462,6 +468,7 @@ class NistBoardInsertEnv(LfdEnv):
     def _check_sim_state(self, sim: dict[str, np.ndarray]) -> None:
         check_range("sim/task", sim["task"], 0, len(self._task_list) - 1)
         check_range("sim/time", sim["time"], 0.0)
+        check_mujoco_state(self.model, sim)
         target = sim["target"]
         if np.any(target < WORKSPACE_LOW - 1e-9) or np.any(target > WORKSPACE_HIGH + 1e-9):
             raise ValueError(f"state['sim/target'] must lie in the workspace [{WORKSPACE_LOW}, {WORKSPACE_HIGH}], "

@@ -42,6 +42,13 @@ def bend_span(resolution: int, reference_resolution: int | None) -> int:
         return 2
     return max(2, round(2 * resolution / reference_resolution))
 
+#: upper bounds of the count parameters (each is linear in a step's time or the engine's memory;
+#: the tasks use at most 57 substeps, 5 iterations and 16 neighbours)
+MAX_COUNTS = {"substeps": 1000, "iterations": 1000, "max_neighbors": 256, "collision_passes": 100,
+              "release_relaxation": 10_000}
+#: upper bound (m) of the radii (a picker or particle larger than the scene has no meaning)
+MAX_LENGTH = 1.0
+
 GRASP_MODES = ("closest", "radius")
 GRASP_TRIGGERS = ("level", "edge")
 
@@ -239,6 +246,10 @@ class SimParams:
                 raise TypeError(f"SimParams.{name} must be an int, got {type(value).__name__}")
             if value < low:
                 raise ValueError(f"SimParams.{name} must be >= {low}, got {value}")
+            high = MAX_COUNTS.get(name)
+            if high is not None and value > high:
+                raise ValueError(f"SimParams.{name} must be <= {high} (larger values make a step take "
+                                 f"minutes or exhaust memory), got {value}")
 
         for name in ("frame_dt", "particle_radius", "max_speed", "grasp_radius"):
             if _finite(name) <= 0.0:
@@ -251,6 +262,10 @@ class SimParams:
                      "particle_dynamic_friction"):
             if _finite(name) < 0.0:
                 raise ValueError(f"SimParams.{name} must be >= 0, got {getattr(self, name)}")
+        for name in ("particle_radius", "picker_radius", "grasp_radius"):
+            if getattr(self, name) > MAX_LENGTH:
+                raise ValueError(f"SimParams.{name} must be <= {MAX_LENGTH} m (the scenes are about 1 m "
+                                 f"across), got {getattr(self, name)}")
         _finite("gravity")
         for name in ("stretch_stiffness", "shear_stiffness", "bend_stiffness"):
             v = _finite(name)

@@ -21,6 +21,7 @@ import numpy as np
 from lfd_envs.core.errors import check_float
 from lfd_envs.core.state import check_range
 from lfd_envs.tasks.particle_task import Context, ParticleTask
+from lfd_envs.tasks.particle_state_values import check_particle_values
 from lfd_envs.tasks.picker_actions import ActionMode, make_action_mode
 
 def with_sim_options(params: Any, sim_options: dict[str, Any] | None) -> Any:
@@ -248,6 +249,9 @@ class ParticleBatch:
         for key in ("positions", "rest", "box_pos", "static_pos"):
             check_range(f"sim/{key}", np.abs(state[key]), high=STATE_POSITION_BOUND)
         check_range("sim/picker_positions", np.abs(state["picker_positions"]), high=PARK_HEIGHT + 1.0)
+        check_particle_values(state)
+        self.task.check_state(state["positions"], {k[len(CTX_PREFIX):]: v for k, v in state.items()
+                                                   if k.startswith(CTX_PREFIX)})
 
     def set_state(self, world: int, state: dict[str, np.ndarray]) -> None:
         """Restore one world from :meth:`get_state` (``ValueError`` on a malformed state)."""

@@ -45,7 +45,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector.utils import batch_space
 
 from lfd_envs.core.base_env import (OBS_MODES, RENDER_MODES, LfdEnv, check_render_mode, check_reset_options,
-                                   observation_space)
+                                   check_seed, observation_space)
 from lfd_envs.core.errors import (StrictInitKwargs, as_real_array, check_choice, check_image_size,
                                   check_int_range)
 from lfd_envs.core.state import check_episode, check_state_layout, episode_arrays
@@ -285,6 +285,7 @@ class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.Vector
 
     # ------------------------------------------------------------------ API
     def reset(self, *, seed: int | Sequence[int] | None = None, options: dict[str, Any] | None = None):
+        self._check_open("reset")
         options = check_reset_options(options)
         n = self.num_envs
         split = options.get("split", "train")
@@ -303,6 +304,7 @@ class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.Vector
         return self._observations(), self._infos(self.batch.performance())
 
     def step(self, actions: Any):
+        self._check_open("step")
         if np.any(self._variant < 0):
             raise RuntimeError("call reset() before step()")
         actions = self._validate(actions)
@@ -335,12 +337,19 @@ class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.Vector
         return obs, reward.astype(np.float64), terminated, truncated, infos
 
     def render(self) -> tuple[np.ndarray, ...] | None:
+        self._check_open("render")
         if self.render_mode != "rgb_array":
             return None
         return tuple(self.batch.images(*self.render_size))
 
     def close(self, **kwargs: Any) -> None:
-        pass
+        """Mark the env closed; ``reset``, ``step`` and ``render`` then raise."""
+        self.closed = True
+
+    def _check_open(self, call: str) -> None:
+        """``RuntimeError`` if :meth:`close` was called."""
+        if self.closed:
+            raise RuntimeError(f"{call}() after close(): this env is closed; make a new one")
 
     # ------------------------------------------------------------------ state of one world
     def get_state(self, index: int) -> dict[str, np.ndarray]:
@@ -392,7 +401,7 @@ class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.Vector
     def _seeds(self, seed: int | Sequence[int]) -> list[int]:
         """One seed per world (``seed + i`` for an int); ``ValueError`` before anything is seeded."""
         n = self.num_envs
-        seeds = [seed + i for i in range(n)] if np.isscalar(seed) else list(seed)
+        seeds = [check_seed(seed) + i for i in range(n)] if np.isscalar(seed) else list(seed)
         if len(seeds) != n or not all(isinstance(s, (int, np.integer)) and not isinstance(s, (bool, np.bool_))
                                       and s >= 0 for s in seeds):
             raise ValueError(f"seed must be a non-negative int or a list of {n} such ints, got {seed!r}")

@@ -167,6 +167,10 @@ class ParticleTask(ABC):
     #: colour of static boxes (pin block, plank)
     static_box_color: ClassVar[tuple[float, float, float]] = (0.45, 0.45, 0.5)
 
+    def check_state(self, positions: np.ndarray, ctx: dict[str, np.ndarray]) -> None:
+        """Task-specific plausibility of one world's particle ``positions`` ``(N, 3)`` and context
+        (``set_state`` input, layout already checked); ``ValueError`` naming the key. Default: none."""
+
     # ------------------------------------------------------------------ scoring
     @abstractmethod
     def performance(self, positions: np.ndarray, ctx: Context) -> np.ndarray:

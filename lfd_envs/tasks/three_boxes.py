@@ -34,6 +34,7 @@ import numpy as np
 
 from lfd_envs.tasks.particle_env import PickPlaceParticleEnv, PickPlaceParticleVectorEnv
 from lfd_envs.tasks.particle_task import Context, ParticleTask, TaskVariant
+from lfd_envs.tasks.particle_state_values import check_boxes_apart
 from lfd_envs.tasks.picker_actions import PickPlaceSchedule, Workspace
 
 __all__ = ["ThreeBoxesTask", "ThreeBoxesEnv", "ThreeBoxesVectorEnv", "BOX_HALF_EXTENTS", "box_poses",
@@ -181,6 +182,11 @@ class ThreeBoxesTask(ParticleTask):
         if self._corners is None:
             self._corners = frame_particles(local[0], self.box_slices)
         return box_poses(positions, local, self._corners)
+
+    def check_state(self, positions: np.ndarray, ctx: dict[str, np.ndarray]) -> None:
+        """The boxes that the particles form do not interpenetrate (a box put inside another)."""
+        centers, rots = self.poses(np.asarray(positions)[None], {"box_local": np.asarray(ctx["box_local"])[None]})
+        check_boxes_apart("sim/positions", centers[0], rots[0], BOX_HALF_EXTENTS)
 
     def state_dim(self) -> int:
         return 30 + 3 * self.num_pickers
