@@ -100,7 +100,7 @@ def random_dataset_mean(env_id: str, kwargs: dict[str, Any], episodes: int, seed
 
     path = datasets.collect(env_id, episodes, out, env_kwargs={**kwargs, "action_mode": "pick_place",
                                                                "obs_mode": "state"},
-                            policy="random_pick_place", seed=seed, progress=False)
+                            policy="random_pick_place", seed=seed, progress=False, overwrite=True)
     return float(np.mean([ep.infos["normalized_performance"][-1] for ep in datasets.load(path).iterate_episodes()]))
 
 
@@ -113,6 +113,7 @@ def transfer_benchmark(env_id: str, teacher_pickers: int, student_kwargs: dict[s
     m = student_kwargs["num_pickers"]
     tag = f"{env_id.split('-')[0]}_{teacher_pickers}to{m}"
     teacher = datasets.collect(env_id, args.demos, workdir / tag / "teacher", progress=False, seed=args.seed,
+                               overwrite=True,
                                env_kwargs={**student_kwargs, "num_pickers": teacher_pickers,
                                            "action_mode": "pick_place", "obs_mode": "state"})
     rand = random_dataset_mean(env_id, student_kwargs, args.random_episodes, args.seed, workdir / tag / "random")

@@ -112,7 +112,7 @@ class MAILDatasetAgent:
 
             teacher_kwargs = {**self.student_kwargs, "num_pickers": self.teacher_pickers, "obs_mode": "state"}
             teacher = datasets.collect(self.env_id, 1, self.workdir / "teacher", env_kwargs=teacher_kwargs,
-                                       seed=self.seed, progress=False, name="teacher")
+                                       seed=self.seed, progress=False, name="teacher", overwrite=True)
             self._mail = MAIL(self.env_id, teacher, self.workdir / "mail", self.student_kwargs, self.config)
             self._mail.env.reset(seed=0)  # optimise_demo steps the pipeline's own student env
             self._backend = self._mail._backend()

@@ -18,6 +18,10 @@ Command line::
 
     python -m lfd_envs.datasets collect --env ClothFold-v0 --episodes 20 \
         [--out DIR --num-pickers 2 --action-mode pick_place --obs-mode state --seed 0 --policy expert|random]
+        [--name NAME --overwrite]
+
+An existing dataset of the same name is kept (``FileExistsError``; on the command line one
+``error:`` line and exit status 2) unless ``overwrite=True`` / ``--overwrite``.
 
 Without ``--out`` (``out_dir=None``) datasets go to Minari's own datasets folder
 (``$MINARI_DATASETS_PATH``, else ``~/.minari/datasets``), where ``minari list local`` and
@@ -35,6 +39,7 @@ import argparse
 import contextlib
 import json
 import os
+import re
 import sys
 import warnings
 from pathlib import Path
@@ -219,9 +224,49 @@ def _datasets_root(out_dir: str | os.PathLike):
 
 
 def dataset_id(env_id: str, name: str) -> str:
-    """Minari id ``lfd/<EnvName>/<name>-v0`` for an lfd env id."""
-    env_name = env_id.split(":")[-1].split("-v")[0]
-    return f"{DATASET_PREFIX}/{env_name}/{name}-v0"
+    """Minari id ``lfd/<EnvName>/<name>-v0`` for an lfd env id (``name`` as :func:`dataset_name` takes it)."""
+    return f"{DATASET_PREFIX}/{_env_name(env_id)}/{dataset_name(env_id, name)}-v0"
+
+
+def _env_name(env_id: str) -> str:
+    return env_id.split(":")[-1].split("-v")[0]
+
+
+def dataset_name(env_id: str, name: str) -> str:
+    """The bare dataset name of ``name``: ``"dup"``, ``"dup-v0"`` and the full Minari id
+    ``"lfd/<EnvName>/dup-v0"`` all give ``"dup"``. ``ValueError`` naming ``name`` for an empty
+    name, another env's id, another version or characters other than letters, digits, ``_.-``."""
+    if not isinstance(name, str):
+        raise ValueError(f"name must be a string, got {type(name).__name__}")
+    bare = name
+    prefix = f"{DATASET_PREFIX}/{_env_name(env_id)}/"
+    if bare.startswith(prefix):
+        bare = bare[len(prefix):]
+    if bare.endswith("-v0"):
+        bare = bare[:-3]
+    if not re.fullmatch(r"[A-Za-z0-9_.]+(-[A-Za-z0-9_.]+)*", bare) or re.search(r"-v\d+$", bare):
+        raise ValueError(f"name {name!r} is not a dataset name for {env_id}: use letters, digits, '_', '.' and "
+                         f"'-' (e.g. 'expert'), optionally as the full id '{prefix}<name>-v0'")
+    return bare
+
+
+def dataset_path(env_id: str, name: str, out_dir: str | os.PathLike | None) -> Path:
+    """Folder :func:`collect` writes the dataset ``name`` of ``env_id`` to (``out_dir`` None:
+    :func:`minari_root`)."""
+    root = minari_root() if out_dir is None else Path(out_dir)
+    if root.exists() and not root.is_dir():
+        raise ValueError(f"out_dir {str(root)!r} is a file, not a folder")
+    existing = next(p for p in (root.resolve(), *root.resolve().parents) if p.exists())
+    if not existing.is_dir() or not os.access(existing, os.W_OK):
+        raise ValueError(f"out_dir {str(root)!r} cannot be written ({existing} is not a writable folder)")
+    return root.resolve() / dataset_id(env_id, name)
+
+
+def _check_new(path: Path, overwrite: bool) -> None:
+    """``FileExistsError`` if a dataset is at ``path`` and ``overwrite`` is false."""
+    if path.exists() and not overwrite:
+        raise FileExistsError(f"a dataset already exists at {path}; pass overwrite=True (command line: "
+                              "--overwrite) to replace it, or choose another name")
 
 
 def collect(
@@ -237,6 +282,7 @@ def collect(
     min_normalized_performance: float | None = None,
     progress: bool = True,
     policy_kwargs: dict[str, Any] | None = None,
+    overwrite: bool = False,
 ) -> Path:
     """Roll out a policy (the scripted expert by default) and save a Minari dataset.
 
@@ -256,6 +302,8 @@ def collect(
         progress: show a progress bar.
         policy_kwargs: extra arguments of a named policy's factory, e.g. ``{"epsilon": 0.2}`` for
             ``"noisy_expert"`` (recorded in the dataset's description).
+        overwrite: replace a dataset of the same name in ``out_dir``; without it an existing
+            one raises ``FileExistsError`` before anything is rolled out.
 
     Returns:
         The dataset's folder (pass it to :func:`load`).
@@ -263,8 +311,8 @@ def collect(
     import minari
     from tqdm import tqdm
 
-    if int(episodes) < 1:
-        raise ValueError(f"episodes must be >= 1, got {episodes}")
+    if isinstance(episodes, bool) or not isinstance(episodes, (int, np.integer)) or episodes < 1:
+        raise ValueError(f"episodes must be an int >= 1, got {episodes!r}")
     env_kwargs = dict(env_kwargs or {})
     policy = policy or "expert"
     if isinstance(policy, str):
@@ -275,6 +323,7 @@ def collect(
     else:
         name = name or "custom"
         factory = policy
+    _check_new(dataset_path(env_id, name, out_dir), overwrite)
     policy_kwargs = dict(policy_kwargs or {})
     if policy_kwargs and factory not in POLICIES.values():
         raise ValueError("policy_kwargs apply to named policies only; bind them into your factory instead")
@@ -300,7 +349,7 @@ def collect(
         raise RuntimeError(f"no episode reached normalized performance {min_normalized_performance}")
     env.close()
     return write_dataset(kept, env, env_id, out_dir, name=name, env_kwargs=env_kwargs, seed=seed, split=split,
-                         extra={"policy_kwargs": policy_kwargs} if policy_kwargs else None)
+                         extra={"policy_kwargs": policy_kwargs} if policy_kwargs else None, overwrite=overwrite)
 
 
 def minari_root() -> Path:
@@ -312,8 +361,9 @@ def minari_root() -> Path:
 
 def write_dataset(episodes: list[Any], env: gym.Env, env_id: str, out_dir: str | os.PathLike | None, *, name: str,
                   env_kwargs: dict[str, Any] | None = None, seed: int = 0, split: str = "train",
-                  extra: dict[str, Any] | None = None) -> Path:
-    """Save recorded episodes (``EpisodeRecorder`` or Minari ``EpisodeBuffer``) as a Minari dataset."""
+                  extra: dict[str, Any] | None = None, overwrite: bool = False) -> Path:
+    """Save recorded episodes (``EpisodeRecorder`` or Minari ``EpisodeBuffer``) as a Minari dataset
+    (``FileExistsError`` if one of the same name exists there, unless ``overwrite``)."""
     import minari
 
     kept = []
@@ -324,6 +374,8 @@ def write_dataset(episodes: list[Any], env: gym.Env, env_id: str, out_dir: str |
         kept.append(ep.buffer())
     env_kwargs = dict(env_kwargs or {})
     ds_id = dataset_id(env_id, name)
+    _check_new(dataset_path(env_id, name, out_dir), overwrite)
+    name = dataset_name(env_id, name)
     out_dir = minari_root() if out_dir is None else out_dir
     with _datasets_root(out_dir):
         with contextlib.suppress(FileNotFoundError):
@@ -420,7 +472,9 @@ def _parse(argv: list[str] | None) -> argparse.Namespace:
                    help='arguments of the policy, e.g. \'{"epsilon": 0.2}\' for noisy_expert')
     c.add_argument("--seed", type=int, default=0)
     c.add_argument("--split", default="train", choices=["train", "eval"])
-    c.add_argument("--name")
+    c.add_argument("--name", help="dataset name (default: the policy's); 'dup', 'dup-v0' and "
+                   "'lfd/<EnvName>/dup-v0' all name lfd/<EnvName>/dup-v0")
+    c.add_argument("--overwrite", action="store_true", help="replace an existing dataset of the same name")
     i = sub.add_parser("info", help="summarise a dataset folder")
     i.add_argument("path")
     return p.parse_args(argv)
@@ -440,12 +494,23 @@ def _print_minari_hint(path: Path) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The command line; a bad argument prints one ``error:`` line and returns 2."""
     args = _parse(argv)
+    try:
+        _run(args)
+    except (ValueError, TypeError, FileExistsError, FileNotFoundError, OSError, gym.error.Error) as exc:
+        print(f"python -m lfd_envs.datasets {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+def _run(args: argparse.Namespace) -> None:
     if args.command == "collect":
         kwargs = {k: v for k, v in {"num_pickers": args.num_pickers, "action_mode": args.action_mode,
                                     "obs_mode": args.obs_mode, "resolution": args.resolution}.items() if v is not None}
         path = collect(args.env, args.episodes, args.out, env_kwargs=kwargs, policy=args.policy,
-                       seed=args.seed, split=args.split, name=args.name, policy_kwargs=args.policy_kwargs)
+                       seed=args.seed, split=args.split, name=args.name, policy_kwargs=args.policy_kwargs,
+                       overwrite=args.overwrite)
         ds = load(path)
         finals = final_performances(ds.iterate_episodes())
         print(f"wrote {path}: {ds.total_episodes} episodes, {ds.total_steps} steps, "
@@ -456,7 +521,6 @@ def main(argv: list[str] | None = None) -> int:
         finals = final_performances(ds.iterate_episodes())
         print(json.dumps({**dataset_config(ds), "episodes": ds.total_episodes, "steps": ds.total_steps,
                           "mean_final_normalized_performance": float(np.mean(finals))}, indent=2))
-    return 0
 
 
 if __name__ == "__main__":

@@ -1,5 +1,7 @@
 """Minari demonstration datasets: write, load, restore states, replay."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -30,3 +32,43 @@ def test_cli_and_bad_policy(tmp_path, capsys):
         datasets.collect(TOY_ID, 1, tmp_path, policy="oracle")
     with pytest.raises(FileNotFoundError):
         datasets.load(tmp_path / "nothing")
+
+
+def test_existing_dataset_is_kept_unless_overwrite(tmp_path):
+    path = datasets.collect(TOY_ID, 1, tmp_path, policy="random", progress=False, name="dup")
+    stamp = (path / "data" / "main_data.hdf5").stat().st_mtime_ns
+    with pytest.raises(FileExistsError, match="overwrite"):
+        datasets.collect(TOY_ID, 2, tmp_path, policy="random", progress=False, name="dup")
+    assert (path / "data" / "main_data.hdf5").stat().st_mtime_ns == stamp
+    again = datasets.collect(TOY_ID, 2, tmp_path, policy="random", progress=False, name="dup", overwrite=True)
+    assert again == path and datasets.load(again).total_episodes == 2
+
+
+@pytest.mark.parametrize("name", ["dup", "dup-v0", "lfd/lfd_test/PointReach/dup-v0"])
+def test_dataset_name_is_normalised(name):
+    assert datasets.dataset_id(TOY_ID, name) == "lfd/lfd_test/PointReach/dup-v0"
+    assert datasets.dataset_id("ThreeBoxes-v0", name.replace("lfd_test/PointReach", "ThreeBoxes")) == \
+        "lfd/ThreeBoxes/dup-v0"
+
+
+@pytest.mark.parametrize("name", ["", "lfd/ThreeBoxes/dup-v0", "a/b", "dup-v1", "sp ace"])
+def test_bad_dataset_names_are_refused(name):
+    with pytest.raises(ValueError, match="name"):
+        datasets.dataset_id(TOY_ID, name)
+
+
+def test_cli_reports_errors_in_one_line(tmp_path, capsys):
+    args = ["collect", "--env", TOY_ID, "--policy", "random", "--out", str(tmp_path)]
+    assert datasets.main(args + ["--episodes", "1", "--name", "lfd/lfd_test/PointReach/dup-v0"]) == 0
+    assert (tmp_path / "lfd" / "lfd_test" / "PointReach" / "dup-v0").is_dir()
+    capsys.readouterr()
+    (tmp_path / "file").write_text("x")
+    for extra, match in [(["--episodes", "1", "--name", "dup"], "already exists.*--overwrite"),
+                         (["--episodes", "0"], "episodes"),
+                         (["--episodes", "1", "--out", str(tmp_path / "file")], "is a file"),
+                         (["--episodes", "1", "--name", "a/b"], "name")]:
+        assert datasets.main(args + extra) == 2
+        err = capsys.readouterr().err
+        assert "Traceback" not in err and err.count("\n") == 1
+        assert re.search(match, err), err
+    assert datasets.main(args + ["--episodes", "1", "--name", "dup", "--overwrite"]) == 0
