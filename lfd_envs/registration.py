@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import gymnasium as gym
 
+from lfd_envs.physics import FLEX_LIKE
+
 _P = "lfd_envs.tasks"
 _M = "lfd_envs.mujoco"
 
@@ -38,39 +40,27 @@ ENV_SPECS: dict[str, tuple[str, str | None, dict, int]] = {
     "NistBoardInsert-v0": (f"{_M}.nist:NistBoardInsertEnv", None, {"instruction_encoding": "tokens"}, 100),
 }
 
-#: Engine settings of the ``-v1`` particle ids, closer to FleX than the ``-v0`` defaults: pickers
-#: are sphere colliders, the solver takes many small steps of one iteration without tethers
-#: (stiff cloth at 40 per side without long-range attachments), self-collision is rebuilt every
-#: 10 substeps and cloth and rope are 1 cm thick at every resolution. The solver follows the
-#: cloth's resolution so that it behaves about as at 40 particles per side: finer cloth runs more
-#: substeps (as stiff in stretch) and bend constraints of the same length in metres (spread
-#: the way it is at 40), coarser cloth bends more easily (folds stay folded); see
-#: ``substeps_reference_resolution`` and ``bend_reference_resolution`` of
-#: :class:`~lfd_envs.sim.SimParams`. ``sim_options`` given to ``gymnasium.make`` for a ``-v1`` id
-#: are applied on top of these (``None`` turns a reference off).
-FLEX_LIKE_SIM_OPTIONS: dict = {"substeps": 20, "iterations": 1, "tethers": False, "collision_passes": 0,
-                               "self_collision_interval": 10, "picker_collision": True,
-                               "self_collision_distance": 0.01, "substeps_reference_resolution": 40,
-                               "bend_reference_resolution": 40}
+#: Engine settings of the ``-v1`` particle ids (the ``"flex_like"`` physics preset, see
+#: :mod:`lfd_envs.physics`; read-only). ``sim_options`` given to ``gymnasium.make`` for a ``-v1``
+#: id apply on top of these (``None`` turns a reference off).
+FLEX_LIKE_SIM_OPTIONS = FLEX_LIKE.sim_options
 #: ``-v1`` pick-and-place speed limit (m/s): MAIL's 1 cm per 10 ms frame.
-FLEX_LIKE_PICK_PLACE_SPEED = 1.0
-
-
-_FLEX = "lfd_envs.flex_like"
-
-
-def _flex_like(v0: str) -> tuple[str, str, dict, int]:
-    entry, vec_entry, kwargs, horizon = ENV_SPECS[v0]
-    return f"{_FLEX}:{entry.rpartition(':')[2]}", f"{_FLEX}:{vec_entry.rpartition(':')[2]}", kwargs, horizon
-
+FLEX_LIKE_PICK_PLACE_SPEED = FLEX_LIKE.pick_place_speed
 
 #: the ``-v0`` particle-task specs (their ``-v1`` twins are built from them)
 V0_PARTICLE_SPECS = {k: v for k, v in ENV_SPECS.items() if v[0].startswith(_P)}
-#: ``-v1`` ids: the ``-v0`` particle tasks, built by :mod:`lfd_envs.flex_like` (string entry points,
-#: so specs serialise, e.g. into Minari datasets)
-ENV_SPECS.update({v0.replace("-v0", "-v1"): _flex_like(v0) for v0 in V0_PARTICLE_SPECS})
 
-PARTICLE_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if v[0].startswith((_P, _FLEX)))
+
+def _with_physics(spec: tuple[str, str | None, dict, int], physics: str) -> tuple[str, str | None, dict, int]:
+    entry, vec_entry, kwargs, horizon = spec
+    return entry, vec_entry, {**kwargs, "physics": physics}, horizon
+
+
+#: ``-v1`` ids: the ``-v0`` particle env classes with ``physics="flex_like"``
+ENV_SPECS.update({v0.replace("-v0", f"-{FLEX_LIKE.version}"): _with_physics(spec, FLEX_LIKE.name)
+                  for v0, spec in V0_PARTICLE_SPECS.items()})
+
+PARTICLE_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if v[0].startswith(_P))
 MUJOCO_ENV_IDS = tuple(k for k, v in ENV_SPECS.items() if v[0].startswith(_M))
 
 

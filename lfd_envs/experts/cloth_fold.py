@@ -35,11 +35,11 @@ class ClothFoldExpert(FoldExpert):
     # Shifts tuned on eval variants (benchmarks.experts).
     @property
     def place_shift(self) -> float:  # type: ignore[override]
-        if self._pickers_collide and self.num_pickers == 1:
+        if self._flex_like and self.num_pickers == 1:
             return -0.03 if self.mode == "delta" else -0.06
         return -0.06
 
     def single_picker_order(self, count: int) -> list[int]:
-        if self._pickers_collide:
+        if self._flex_like:
             return [count // 2]  # the middle of the left edge only
         return [0, count - 1] + list(range(1, count - 1))

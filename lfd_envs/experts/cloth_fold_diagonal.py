@@ -38,7 +38,7 @@ class ClothFoldDiagonalExpert(FoldExpert):
         # released 6 cm short rests on the block top and the taut cloth pulls it back off;
         # 1.5 cm short (delta) or at the partner (pick_place) it lands past the block's edge.
         if self.task.pinned:
-            if self._pickers_collide:
+            if self._flex_like:
                 return -0.015 if self.mode == "delta" else 0.0
             return -0.06 if self.mode == "delta" else -0.03
         return -0.07
@@ -60,4 +60,4 @@ class ClothFoldDiagonalExpert(FoldExpert):
         """Pick-and-place with one colliding picker: the released corner may slide on past its
         partner (more so the finer the cloth and the more substeps), so it is put back while
         steps are left."""
-        return self.mode == "pick_place" and self.num_pickers == 1 and self._pickers_collide
+        return self.mode == "pick_place" and self.num_pickers == 1 and self._flex_like

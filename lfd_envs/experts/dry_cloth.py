@@ -80,7 +80,7 @@ class DryClothExpert(PickerExpert):
             places = np.stack([task.far_side_point(ctx, mid + sign * (f - 0.5) * side, *TEACHER_PLACE) for f in frac])
             return [(task.grid_index(rows, 0), places)]
         middle = task.grid_index(np.array([n // 2]), 0)
-        if self._pickers_collide:
+        if self._flex_like:
             return [(middle, task.far_side_point(ctx, mid, *FLEX_LIKE_SINGLE_OVER)[None])]
         over = task.far_side_point(ctx, mid, *SINGLE_OVER)[None]
         low = task.far_side_point(ctx, mid - sign * SPREAD_HALF_WIDTH, *SINGLE_SPREAD)[None]
@@ -109,7 +109,7 @@ class DryClothExpert(PickerExpert):
         return row[crease:crease + 1], place[None]
 
     def next_move(self) -> Move | None:
-        if self._pickers_collide and self.num_pickers == 1 and self.mode == "pick_place" and self.moves_done:
+        if self._flex_like and self.num_pickers == 1 and self.mode == "pick_place" and self.moves_done:
             correction = self._centre_crease()  # as often as the crease is off and steps are left
             return None if correction is None else self._make_move(*correction, on_top=True)
         plan = self.plan()

@@ -14,9 +14,10 @@ This class executes moves in both action modes:
 Works for any picker count: pickers that a move does not use stay where they are (delta) or
 pick and place in empty air at the top of the workspace (pick_place).
 
-With colliding pickers (``SimParams.picker_collision``, the ``-v1`` ids) a delta-mode picker
-descends only until it rests on top of the particles under its pick point, and a descent or
-lowering also ends when the picker is stopped by what it pushes on (a box top). Experts with
+With the ``flex_like`` physics (``env.unwrapped.physics``; the ``-v1`` ids, colliding pickers)
+a delta-mode picker descends only until it rests on top of the particles under its pick point,
+and a descent or lowering also ends when the picker is stopped by what it pushes on (a box
+top). Experts with
 :attr:`PickerExpert.pick_place_on_top` (the rope's and ClothFold's) also pick at that resting
 height in pick_place mode and place that much higher.
 """
@@ -97,9 +98,10 @@ class PickerExpert:
     #: the arc: a carried particle touching the cloth there can drag its target along, and the
     #: picker would chase it across the table.
     track_place: bool = False
-    #: pick_place mode with colliding pickers: pick where the picker rests on top of the
-    #: particles and place that much higher (see :meth:`_rest_on_top`). Off by default (on for the
-    #: rope and ClothFold): the other cloth experts' plans are tuned to picks at the cloth's height.
+    #: pick_place mode with the ``flex_like`` physics (colliding pickers): pick where the picker
+    #: rests on top of the particles and place that much higher (see :meth:`_rest_on_top`). Off
+    #: by default (on for the rope and ClothFold): the other cloth experts' plans are tuned to
+    #: picks at the cloth's height.
     pick_place_on_top: bool = False
 
     def __init__(self, env: Any, hold_speed: float = 0.6, tolerance: float = 1e-3, max_phase_steps: int = 80,
@@ -159,8 +161,10 @@ class PickerExpert:
         return np.asarray(self.base.picker_positions, dtype=np.float64)
 
     @property
-    def _pickers_collide(self) -> bool:
-        return bool(self.base.batch.sim.params.picker_collision)
+    def _flex_like(self) -> bool:
+        """Whether the env runs the ``flex_like`` physics (the ``-v1`` ids, colliding pickers):
+        the plans follow the env's physics preset, not engine options given on top of it."""
+        return self.base.physics == "flex_like"
 
     def _resting_on_top(self, points: np.ndarray) -> np.ndarray:
         """``points`` raised to the lowest picker-centre height that touches no free particle.
@@ -202,7 +206,7 @@ class PickerExpert:
         move = self.next_move()
         if move is not None:
             self.moves_done += 1
-            if self._pickers_collide and self.pick_place_on_top:
+            if self._flex_like and self.pick_place_on_top:
                 self._rest_on_top(move)
         pick, place = self._idle_points()
         if move is not None:
@@ -232,7 +236,7 @@ class PickerExpert:
         ws, s = self.workspace, self.schedule
         top = ws.hi[2] - ws.margin
         pick, place = ws.clip(move.pick), ws.clip(move.place)
-        if self._pickers_collide and name in ("approach", "descend"):  # before the grasp only
+        if self._flex_like and name in ("approach", "descend"):  # before the grasp only
             pick = ws.clip(self._resting_on_top(pick))
         wpt = s.waypoints(pick, place, top)
         approach = pick if self.direct_approach else wpt["above_pick"]

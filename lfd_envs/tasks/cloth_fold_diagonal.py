@@ -244,10 +244,11 @@ class ClothFoldDiagonalEnv(ParticleEnv):
                  image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
                  render_mode: str | None = None, horizon: int | None = None, pinned: bool = False,
                  render_size: int | tuple[int, int] | None = None,
-                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
+                 physics: str = "fast") -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution, pinned=pinned), action_mode, obs_mode,
                     image_size, device, render_mode, horizon, render_size,
-                    pick_place_speed=pick_place_speed, sim_options=sim_options)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics)
 
 
 class ClothFoldDiagonalVectorEnv(ParticleVectorEnv):
@@ -260,7 +261,8 @@ class ClothFoldDiagonalVectorEnv(ParticleVectorEnv):
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
                  horizon: int | None = None, pinned: bool = False,
                  render_size: int | tuple[int, int] | None = None, max_episode_steps: int | None = None,
-                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
+                 physics: str = "fast") -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution, pinned=pinned), action_mode,
                     obs_mode, image_size, device, render_mode, horizon, render_size, max_episode_steps,
-                    pick_place_speed=pick_place_speed, sim_options=sim_options)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics)

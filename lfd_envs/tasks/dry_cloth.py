@@ -236,10 +236,11 @@ class DryClothEnv(PickPlaceParticleEnv):
                  render_mode: str | None = None, horizon: int | None = None,
                  render_size: int | tuple[int, int] | None = None, metric: str = "default",
                  reach: float = DEFAULT_REACH,
-                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
+                 physics: str = "fast") -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution, metric=metric, reach=reach), action_mode,
                     obs_mode, image_size, device, render_mode, horizon, render_size,
-                    pick_place_speed=pick_place_speed, sim_options=sim_options)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics)
 
 
 class DryClothVectorEnv(PickPlaceParticleVectorEnv):
@@ -252,7 +253,8 @@ class DryClothVectorEnv(PickPlaceParticleVectorEnv):
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
                  horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
                  max_episode_steps: int | None = None, metric: str = "default", reach: float = DEFAULT_REACH,
-                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
+                 physics: str = "fast") -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution, metric=metric, reach=reach),
                     action_mode, obs_mode, image_size, device, render_mode, horizon, render_size, max_episode_steps,
-                    pick_place_speed=pick_place_speed, sim_options=sim_options)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics)

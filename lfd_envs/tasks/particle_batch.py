@@ -14,12 +14,14 @@ from __future__ import annotations
 
 import dataclasses
 from collections import OrderedDict
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
 
 from lfd_envs.core.errors import check_float
-from lfd_envs.core.state import check_range
+from lfd_envs.core.state import check_range, task_id
+from lfd_envs.physics import DEFAULT_PHYSICS, PHYSICS_PRESETS, PhysicsPreset, physics_preset
 from lfd_envs.tasks.particle_task import Context, ParticleTask
 from lfd_envs.tasks.particle_state_values import check_particle_values
 from lfd_envs.tasks.picker_actions import ActionMode, make_action_mode
@@ -80,23 +82,28 @@ class ParticleBatch:
         device: Warp device.
         cache_size: Prepared variants kept in memory.
         pick_place_speed: Speed limit (m/s) of pickers that hold something in pick-and-place
-            steps (MAIL: 1 m/s), or None for the task's schedule (faster long carries); with
-            ``picker_collision`` in ``sim_options`` it limits empty pickers too.
+            steps (MAIL: 1 m/s), or None for the preset's (``fast``: the task's schedule, faster
+            long carries; ``flex_like``: 1 m/s); with colliding pickers (``picker_collision``) it
+            limits empty pickers too.
         sim_options: Engine parameters (:class:`~lfd_envs.sim.SimParams` fields) that replace
-            the task's, e.g. ``{"picker_collision": True}``; None keeps the task's.
+            the task's and the preset's, e.g. ``{"substeps": 10}``; None keeps those.
+        physics: The physics preset, ``"fast"`` or ``"flex_like"`` (:mod:`lfd_envs.physics`).
     """
 
     def __init__(self, task: ParticleTask, num_worlds: int, action_mode: str, device: str = "cpu",
                  cache_size: int = 128, pick_place_speed: float | None = None,
-                 sim_options: dict[str, Any] | None = None) -> None:
+                 sim_options: dict[str, Any] | None = None, physics: str = DEFAULT_PHYSICS) -> None:
         from lfd_envs.sim import ParticleSim
 
+        self.physics = physics_preset(physics)
         self.task = task
         self.num_worlds = int(num_worlds)
         self.device = device
         self.workspace = task.workspace()
-        params = with_sim_options(task.sim_params(), sim_options)
+        params = with_sim_options(self.physics.sim_params(task.sim_params()), sim_options)
         schedule = task.pick_place_schedule()
+        if pick_place_speed is None:
+            pick_place_speed = self.physics.pick_place_speed
         if pick_place_speed is not None:
             speed = check_float("pick_place_speed", pick_place_speed, MIN_PICK_PLACE_SPEED, MAX_PICK_PLACE_SPEED)
             limit = speed * params.frame_dt
@@ -229,11 +236,31 @@ class ParticleBatch:
         state.update({CTX_PREFIX + k: np.array(v[world], copy=True) for k, v in self.ctx.items()})
         return state
 
-    def identity(self) -> dict[str, Any]:
-        """Task identity of this batch's states: the task name (pinned or not included). The
-        picker count and resolution show in the state's shapes, so a teacher's state can be
-        turned into a student's (another picker count) by replacing the picker entries."""
-        return {"task": self.task.name}
+    @property
+    def env_id(self) -> str:
+        """Env id of this task under this physics preset, e.g. ``ClothFold-v1``."""
+        return self.physics.env_id(self.task.name)
+
+    def identity(self, physics: PhysicsPreset | None = None) -> dict[str, Any]:
+        """Task identity of this batch's states (or of this task under another ``physics``): the
+        env id, so the task (pinned or not included) and the physics preset. The picker count
+        and resolution show in the state's shapes, so a teacher's state can be turned into a
+        student's (another picker count) by replacing the picker entries."""
+        return {"task": (physics or self.physics).env_id(self.task.name)}
+
+    def check_physics(self, state: Any) -> None:
+        """``ValueError`` naming both env ids if ``state`` (a ``get_state()`` dict) was saved by
+        this task under another physics preset: its future there would differ. Anything else
+        is left to the full checks of ``set_state``."""
+        saved = state.get("episode/task_id") if isinstance(state, Mapping) else None
+        if saved is None or np.ndim(saved) != 0 or np.asarray(saved).dtype.kind not in "iu":
+            return
+        for other in PHYSICS_PRESETS.values():
+            if other is not self.physics and int(saved) == task_id(self.identity(other)):
+                raise ValueError(
+                    f"state['episode/task_id'] is from {other.env_id(self.task.name)} (physics={other.name!r}); "
+                    f"this env is {self.env_id} (physics={self.physics.name!r}): a state runs only in the "
+                    "physics that saved it")
 
     def check_state(self, state: dict[str, np.ndarray]) -> None:
         """Value ranges of one world's state (layout already checked); ``ValueError`` naming the key."""

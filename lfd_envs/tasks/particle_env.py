@@ -25,10 +25,13 @@ cloth side / rope particles), ``device`` (Warp device, default ``"cpu"``), ``ren
 (``"rgb_array"`` or None), ``render_size`` (frames of ``render()``), ``horizon`` (default from
 the task per action mode; the vector env also takes ``max_episode_steps``, which
 ``gymnasium.make_vec`` fills in from the spec, as an upper bound like ``gymnasium.make``'s
-``TimeLimit``), ``pick_place_speed`` (m/s limit on pickers that hold something in
-pick-and-place steps, e.g. 1.0 as in MAIL; default None: the task's own, faster schedule),
-``sim_options`` (engine parameters replacing the task's, a dict of ``SimParams`` fields such as
-``{"picker_collision": True, "self_collision_distance": 0.01}``; default None); plus
+``TimeLimit``), ``physics`` (``"fast"``, default, the ``-v0`` ids; or ``"flex_like"``, the
+``-v1`` ids: the physics preset, see :mod:`lfd_envs.physics`; ``env.physics`` says which runs),
+``pick_place_speed`` (m/s limit on pickers that hold something in pick-and-place steps, e.g. 1.0
+as in MAIL; default None: the preset's, for ``fast`` the task's own, faster schedule),
+``sim_options`` (engine parameters replacing the task's and the preset's, a dict of
+``SimParams`` fields such as ``{"self_collision_distance": 0.01}``; default None; they do not
+change ``physics``, which the scripted experts plan for); plus
 task options such as ``pinned``. ``particles`` observations are ``(N + P, 3)``: every particle,
 then the pickers. Tasks whose default action mode is ``"pick_place"`` derive from
 :class:`PickPlaceParticleEnv` / :class:`PickPlaceParticleVectorEnv` instead.
@@ -90,6 +93,12 @@ class _ParticleBatchViews:
         return int(self.batch.sim.num_particles)
 
     @property
+    def physics(self) -> str:
+        """The physics preset this env runs: ``"fast"`` (the ``-v0`` ids) or ``"flex_like"`` (the
+        ``-v1`` ids), see :mod:`lfd_envs.physics`. ``sim_options`` on top of it do not change it."""
+        return self.batch.physics.name
+
+    @property
     def workspace(self) -> Workspace:
         """Workspace box of the pickers (bounds of pick-and-place targets)."""
         return self.batch.workspace
@@ -121,15 +130,16 @@ class ParticleEnv(_ParticleBatchViews, LfdEnv):
                  image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
                  render_mode: str | None = None, horizon: int | None = None,
                  render_size: int | tuple[int, int] | None = None,
-                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
+                 physics: str = "fast") -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode, image_size,
                     device, render_mode, horizon, render_size,
-                    pick_place_speed=pick_place_speed, sim_options=sim_options)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics)
 
     def _setup(self, task_options: dict[str, Any], action_mode: str, obs_mode: str | None,
                image_size: Any, device: str, render_mode: str | None, horizon: int | None,
                render_size: Any = None, pick_place_speed: float | None = None,
-               sim_options: dict[str, Any] | None = None) -> None:
+               sim_options: dict[str, Any] | None = None, physics: str = "fast") -> None:
         """The construction shared by every particle env's ``__init__`` (they differ only in
         defaults and task options): the task, ``LfdEnv.__init__``, the batch, the spaces."""
         check_choice("action_mode", action_mode, ACTION_MODES)
@@ -144,7 +154,7 @@ class ParticleEnv(_ParticleBatchViews, LfdEnv):
         self.num_pickers = task.num_pickers
         self.device = device
         self.batch = ParticleBatch(task, 1, action_mode, device, pick_place_speed=pick_place_speed,
-                                   sim_options=sim_options)
+                                   sim_options=sim_options, physics=physics)
         self.action_space, self.state_space, self.particles_space = self._task_spaces()
         self._finish_init()
 
@@ -197,6 +207,12 @@ class ParticleEnv(_ParticleBatchViews, LfdEnv):
     def _set_sim_state(self, state: dict[str, np.ndarray]) -> None:
         self.batch.set_state(0, state)
 
+    def set_state(self, state: dict[str, np.ndarray]) -> None:
+        """:meth:`LfdEnv.set_state <lfd_envs.core.LfdEnv.set_state>`; a state saved by this task
+        under the other physics preset is refused with a ``ValueError`` naming both env ids."""
+        self.batch.check_physics(state)
+        super().set_state(state)
+
     # ------------------------------------------------------------------ privileged views (experts)
     @property
     def particle_positions(self) -> np.ndarray:
@@ -243,15 +259,17 @@ class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.Vector
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
                  horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
                  max_episode_steps: int | None = None,
-                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
+                 physics: str = "fast") -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode,
                     image_size, device, render_mode, horizon, render_size, max_episode_steps,
-                    pick_place_speed=pick_place_speed, sim_options=sim_options)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics)
 
     def _setup(self, num_envs: int, task_options: dict[str, Any], action_mode: str, obs_mode: str | None,
                image_size: Any, device: str, render_mode: str | None, horizon: int | None,
                render_size: Any = None, max_episode_steps: int | None = None,
-               pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
+               pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
+               physics: str = "fast") -> None:
         num_envs = check_int_range("num_envs", num_envs, 1)
         check_choice("action_mode", action_mode, ACTION_MODES)
         device = _check_device(device)
@@ -271,7 +289,7 @@ class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.Vector
         self.device = device
         self.variants = VariantSplit(task.name)
         self.batch = ParticleBatch(task, self.num_envs, action_mode, device, pick_place_speed=pick_place_speed,
-                                   sim_options=sim_options)
+                                   sim_options=sim_options, physics=physics)
         self.single_action_space, state, particles = self._task_spaces()
         self.single_observation_space = observation_space(self.obs_mode, self.image_size, state, particles)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -365,9 +383,11 @@ class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.Vector
         """Restore world ``index`` from :meth:`get_state` or a single env's ``get_state()``.
 
         The whole state is checked first (as in a single env's ``set_state``); a bad state raises
-        ``TypeError``/``ValueError`` naming the key and changes nothing.
+        ``TypeError``/``ValueError`` naming the key and changes nothing, a state saved under the
+        other physics preset one naming both env ids.
         """
         index = check_int_range("index", index, 0, self.num_envs - 1)
+        self.batch.check_physics(state)
         reference = {f"sim/{k}": v for k, v in self.batch.get_state(index).items()}
         reference.update(episode_arrays("train", 0, 0, 0.0, 0.0, self.batch.identity()))
         arrays = check_state_layout(state, reference)
@@ -469,10 +489,11 @@ class PickPlaceParticleEnv(ParticleEnv):
                  image_size: int | tuple[int, int] = 32, resolution: int | None = None, device: str = "cpu",
                  render_mode: str | None = None, horizon: int | None = None,
                  render_size: int | tuple[int, int] | None = None,
-                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
+                 physics: str = "fast") -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode, image_size,
                     device, render_mode, horizon, render_size,
-                    pick_place_speed=pick_place_speed, sim_options=sim_options)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics)
 
 
 class PickPlaceParticleVectorEnv(ParticleVectorEnv):
@@ -483,7 +504,8 @@ class PickPlaceParticleVectorEnv(ParticleVectorEnv):
                  resolution: int | None = None, device: str = "cpu", render_mode: str | None = None,
                  horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
                  max_episode_steps: int | None = None,
-                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None) -> None:
+                 pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
+                 physics: str = "fast") -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode,
                     image_size, device, render_mode, horizon, render_size, max_episode_steps,
-                    pick_place_speed=pick_place_speed, sim_options=sim_options)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics)
