@@ -692,11 +692,15 @@ def solve_particles(
                         x = xn
             if pickers.enabled != 0:
                 for p in range(pickers.pickers_per_world):
-                    xn = push_out_of_sphere(x, r, pickers.position[w * pickers.pickers_per_world + p], pickers.radius)
-                    if xn[0] != x[0] or xn[1] != x[1] or xn[2] != x[2]:
-                        particles.picker_push[i] = particles.picker_push[i] + (xn - x)
-                        particles.pusher[i] = p
-                    x = xn
+                    c = pickers.position[w * pickers.pickers_per_world + p]
+                    reach = pickers.radius + r
+                    d = x - c
+                    if wp.dot(d, d) < reach * reach:  # inside: the rare case (the test is push_out_of_sphere's)
+                        xn = push_out_of_sphere(x, r, c, pickers.radius)
+                        if xn[0] != x[0] or xn[1] != x[1] or xn[2] != x[2]:
+                            particles.picker_push[i] = particles.picker_push[i] + (xn - x)
+                            particles.pusher[i] = p
+                        x = xn
         # ground and static boxes
         if x[2] < r:
             x = wp.vec3(x[0], x[1], r)
