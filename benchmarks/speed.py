@@ -11,11 +11,19 @@ import argparse
 import os
 import platform
 import statistics
+import sys
 import time
+import warnings
 from typing import Any, Callable, Iterable
 
 
 # ---------------------------------------------------------------------------- helpers
+def _progress(message: str, since: float | None = None) -> None:
+    """Progress line on stderr (the tables go to stdout), with the seconds since ``since``."""
+    elapsed = "" if since is None else f" ({time.perf_counter() - since:.0f} s)"
+    print(f"# {message}{elapsed}", file=sys.stderr, flush=True)
+
+
 def _median_seconds(fn: Callable[[], Any], repeats: int, budget_s: float = 1.5) -> tuple[float, float]:
     """Median (wall, thread-CPU) seconds of ``fn`` after one discarded warm-up call.
 
@@ -413,6 +421,7 @@ def particle_engine_rows(
         }
         r.update(extra)
         rows.append(r)
+        _progress(f"particle_engine: {config} {n}x{n}, {w} world(s), self-collision {sc}")
 
     for n in resolutions:
         for sc in (True, False):
@@ -532,6 +541,7 @@ def drycloth_threeboxes_rows(device: str = "cpu", repeats: int = 3,
 
         sec, cpu = _median_seconds_without_reset(run, reset_only, repeats, budget_s=4.0, reset_budget_s=0.5)
         base = env.unwrapped
+        _progress(f"drycloth_threeboxes: {env_id} {mode} {pickers} picker(s) {obs_mode}")
         rows.append({"section": "drycloth_threeboxes", "env": env_id, "action_mode": mode, "pickers": pickers,
                      "obs": obs_mode, "resolution": base.task.resolution, "particles": base.num_particles,
                      "frames": base.picker_actions.frames_per_step, "device": device,
@@ -577,6 +587,7 @@ def particle_env_rows(device: str = "cpu", repeats: int = 3,
 
                 sec, cpu = _median_seconds_without_reset(run, reset_only, repeats, budget_s=3.0, reset_budget_s=0.3)
                 base = env.unwrapped
+                _progress(f"particle_envs: {env_id} {mode} {obs_mode}")
                 rows.append({"section": "particle_envs", "env": env_id, "action_mode": mode, "obs": obs_mode,
                              "pickers": base.num_pickers, "resolution": base.task.resolution,
                              "particles": base.num_particles,
@@ -634,6 +645,7 @@ def pick_place_speed_rows(device: str = "cpu", variants: int = 4, steps: int = 3
             r = _random_pick_place_run(env, variants, steps, seed)
             rate = variants * steps / max(r["cpu_s"], 1e-9)
             reference = rate if reference is None else reference
+            _progress(f"pick_place_speed: {env_id} {pickers} picker(s), speed {speed}")
             rows.append({"section": "pick_place_speed", "env": env_id, "pickers": pickers,
                          "pick_place_speed": "default" if speed is None else speed, "frames": round(r["frames"], 1),
                          "cpu_env_steps_per_s": round(rate, 2), "cost_vs_default": round(reference / rate, 2),
@@ -641,6 +653,79 @@ def pick_place_speed_rows(device: str = "cpu", variants: int = 4, steps: int = 3
                          "device": device})
             env.close()
     return rows
+
+
+#: (task, action mode, pickers) rows of :func:`version_rows`; the first two are the speed targets
+VERSION_CONFIGS = (("ClothFold", "delta", 2), ("ClothFold", "pick_place", 2),
+                   ("ClothFoldDiagonalUnpinned", "delta", 1), ("StraightenRope", "delta", 2))
+
+
+def _timed_steps(env: Any, actions: list[Any]) -> float:
+    """Thread-CPU seconds of ``env.step`` over ``actions`` from the same start (variant 0; the
+    reset is not timed)."""
+    env.reset(seed=0, options={"variant": 0})
+    c0 = time.thread_time()
+    for a in actions:
+        env.step(a)
+    return time.thread_time() - c0
+
+
+def version_rows(device: str = "cpu", rounds: int = 3, configs: tuple[tuple[str, str, int], ...] = VERSION_CONFIGS,
+                 seed: int = 0) -> list[dict[str, Any]]:
+    """Env steps/s of the ``-v1`` ids (FleX-like physics) against their ``-v0`` twins, same run.
+
+    Per row: the same seeded uniform random actions (16 delta steps or 2 pick-and-place steps,
+    state observations) on both versions from the same start, timed in ``rounds`` interleaved
+    rounds (``-v0`` then ``-v1``) after a discarded warm-up round, so both see the same load of
+    shared cores; rates use the calling thread's CPU time, ``v1_vs_v0`` is the median of the
+    per-round rate ratios; ``frames`` are engine frames per step (mean over the timed steps).
+    """
+    import gymnasium as gym
+    import numpy as np
+
+    import lfd_envs  # noqa: F401  (registers the ids)
+
+    rows = []
+    for task, mode, pickers in configs:
+        t0 = time.perf_counter()
+        with warnings.catch_warnings():  # Gymnasium's "-v0 is out of date" notice
+            warnings.simplefilter("ignore", DeprecationWarning)
+            envs = {v: gym.make(f"{task}-{v}", action_mode=mode, num_pickers=pickers, obs_mode="state",
+                                device=device) for v in ("v0", "v1")}
+        rng = np.random.default_rng(seed)
+        n = 2 if mode == "pick_place" else 16
+        actions = [rng.uniform(-1, 1, envs["v0"].action_space.shape).astype(np.float32) for _ in range(n)]
+        frames = {v: _mean_frames(env, actions) for v, env in envs.items()}
+        rates: dict[str, list[float]] = {"v0": [], "v1": []}
+        for r in range(rounds + 1):
+            for v, env in envs.items():
+                sec = _timed_steps(env, actions)
+                if r:  # round 0 warms up (kernel compilation, caches)
+                    rates[v].append(n / max(sec, 1e-9))
+            _progress(f"versions: {task} {mode} {pickers} picker(s), round {r}/{rounds}", t0)
+        for env in envs.values():
+            env.close()
+        ratio = statistics.median(b / a for a, b in zip(rates["v0"], rates["v1"]))
+        rows.append({"section": "versions", "env": task, "action_mode": mode, "pickers": pickers, "obs": "state",
+                     "v0_frames": round(frames["v0"], 1), "v1_frames": round(frames["v1"], 1),
+                     "v0_cpu_env_steps_per_s": round(statistics.median(rates["v0"]), 2),
+                     "v1_cpu_env_steps_per_s": round(statistics.median(rates["v1"]), 2),
+                     "v1_vs_v0": round(ratio, 3), "device": device})
+    return rows
+
+
+def _mean_frames(env: Any, actions: list[Any]) -> float:
+    """Mean engine frames of the steps of ``actions`` from variant 0 (planned, not stepped: the
+    frame count depends only on the action and the picker positions, which stepping moves)."""
+    import numpy as np
+
+    env.reset(seed=0, options={"variant": 0})
+    base = env.unwrapped
+    frames = []
+    for a in actions:
+        frames.append(int(base.picker_actions.plan_motion(np.asarray(a)[None], base.batch.pickers).frames[0]))
+        env.step(a)
+    return float(np.mean(frames))
 
 
 # ---------------------------------------------------------------------------- NIST board
@@ -704,6 +789,7 @@ def nist_rows(device: str = "cpu", steps: int = 100, seed: int = 0) -> list[dict
 
 # ---------------------------------------------------------------------------- main
 SECTIONS: dict[str, Callable[..., list[dict[str, Any]]]] = {
+    "versions": version_rows,
     "particle_envs": particle_env_rows,
     "particle_engine": particle_engine_rows,
     "render": render_rows,
@@ -736,16 +822,23 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--sections", default=",".join(SECTIONS), help=f"comma-separated subset of {list(SECTIONS)}")
     parser.add_argument("--device", default="cpu", help="warp device (cpu, cuda:0)")
     args = parser.parse_args(argv)
+    names = args.sections.split(",")
+    for name in names:  # all checked before anything runs
+        if name not in SECTIONS:
+            parser.error(f"unknown section {name!r}; choose from {list(SECTIONS)}")
     import warp as wp
 
     wp.config.quiet = True
     for key, value in environment_info().items():
         print(f"# {key}: {value}")
-    for name in args.sections.split(","):
-        if name not in SECTIONS:
-            parser.error(f"unknown section {name!r}; choose from {list(SECTIONS)}")
-        print(f"\n## {name}")
-        print_table(SECTIONS[name](device=args.device))
+    for name in names:
+        print(f"\n## {name}", flush=True)
+        t0 = time.perf_counter()
+        _progress(f"{name}: running")
+        rows = SECTIONS[name](device=args.device)
+        _progress(f"{name}: {len(rows)} rows", t0)
+        print_table(rows)
+        sys.stdout.flush()
 
 
 if __name__ == "__main__":
