@@ -174,6 +174,7 @@ def _sb3(algo_name: str) -> AgentFactory:
         kwargs["policy_kwargs"] = {**_image_extractor_kwargs(env), **dict(kwargs.get("policy_kwargs") or {})}
         return algo(_policy_name(env), env, seed=seed, **kwargs)
 
+    factory.kwargs_target = lambda: getattr(importlib.import_module("stable_baselines3"), algo_name)
     factory.__doc__ = (f"Stable-Baselines3 {algo_name} with its default hyper-parameters "
                        "(image observations through lfd_agents.ImageEncoder; `reward_scale` multiplies "
                        "the training env's rewards).")
@@ -187,6 +188,7 @@ def _lfd_agent(class_name: str, module: str = "lfd_agents") -> AgentFactory:
             return cls.for_benchmark(env, seed=seed, **kwargs)
         return cls(_policy_name(env), env, seed=seed, **kwargs)
 
+    factory.kwargs_target = lambda: getattr(importlib.import_module(module), class_name)
     factory.__doc__ = f"{module}.{class_name}"
     return factory
 
@@ -195,6 +197,7 @@ def _named_factory(module: str, name: str) -> AgentFactory:
     def factory(env: gym.Env, seed: int = 0, **kwargs: Any):
         return getattr(importlib.import_module(module), name)(env, seed, **kwargs)
 
+    factory.kwargs_target = lambda: getattr(importlib.import_module(module), name)
     factory.__doc__ = f"{module}.{name}"
     return factory
 
@@ -234,16 +237,23 @@ def _lfd_demo_agent(class_name: str) -> AgentFactory:
                        "(from `select_first_variant`, default 400) after every training chunk and acts with the "
                        "best one (lfd_agents.selection.SelectBest; the validation steps count as env steps).")
     factory.uses_demo_cache = True  # the harness passes demo_cache=<out>/_demos
+    factory.kwargs_target = lambda: getattr(importlib.import_module("lfd_agents"), class_name)
     return factory
 
 
 #: built-in agents that are scripted references, not learners (no device, never "baselines")
 REFERENCE_AGENTS = ("expert", "random", "random_uniform", "zero", "mail_dataset")
 
+def _no_kwargs(factory: AgentFactory) -> AgentFactory:
+    """Mark ``factory`` as taking no suite kwargs (it ignores any the harness passes)."""
+    factory.kwargs_target = None
+    return factory
+
+
 BUILTIN_AGENTS: dict[str, AgentFactory] = {
-    "random": random_agent,
-    "random_uniform": lambda env, seed=0, **kw: RandomAgent(env, seed),
-    "zero": lambda env, seed=0, **kw: ZeroAgent(env, seed),
+    "random": _no_kwargs(random_agent),
+    "random_uniform": _no_kwargs(lambda env, seed=0, **kw: RandomAgent(env, seed)),
+    "zero": _no_kwargs(lambda env, seed=0, **kw: ZeroAgent(env, seed)),
     "expert": lambda env, seed=0, **kw: ExpertAgent(env, seed, **kw),
     "sac": _sb3("SAC"),
     "td3": _sb3("TD3"),
@@ -271,6 +281,9 @@ def resolve_agent(spec: str) -> AgentFactory:
             "or give a third-party factory as 'package.module:factory'"
         )
     module_name, _, attr = spec.partition(":")
+    if not module_name or not attr:
+        raise ValueError(f"agent {spec!r} must be 'package.module:factory' with both parts, "
+                         f"e.g. 'mypkg.agents:make_agent'")
     try:
         module = importlib.import_module(module_name)
     except ImportError as exc:

@@ -96,28 +96,15 @@ _STATS = ("mean", "std", "p25", "median", "p75")
 
 
 def check_suite(suite: dict[str, Any], path: Path | str = "suite") -> None:
-    """Raise ``ValueError`` naming ``path`` and the entry if the suite's shape is wrong (before any training)."""
+    """Raise ``ValueError`` naming ``path`` and the entry if the suite is wrong (before any training):
+    the schema of :mod:`benchmarks.suite_schema`, the agents' kwargs and the reference rows."""
+    from benchmarks.suite_schema import check_agent_kwargs, validate_suite
+
     def bad(what: str) -> ValueError:
         return ValueError(f"{path}: {what}")
 
-    if not isinstance(suite.get("cells"), list) or not suite["cells"]:
-        raise bad("needs a non-empty list 'cells'")
-    if "notes" in suite and not isinstance(suite["notes"], str):
-        raise bad("'notes' must be a string")
-    for i, spec in enumerate(suite["cells"]):
-        if not isinstance(spec, dict) or "env" not in spec:
-            raise bad(f"cells[{i}] needs an 'env'")
-        if "notes" in spec and not isinstance(spec["notes"], str):
-            raise bad(f"cells[{i}].notes must be a string")
-        steps = spec.get("coverage_steps", 1)
-        if not isinstance(steps, int) or isinstance(steps, bool) or steps < 1:
-            raise bad(f"cells[{i}].coverage_steps must be an integer >= 1, got {steps!r}")
-        deterministic = spec.get("deterministic", suite.get("deterministic", True))
-        if not isinstance(deterministic, bool):
-            raise bad(f"cells[{i}].deterministic must be true or false, got {deterministic!r}")
-        cpus = spec.get("cpus", suite.get("cpus", 1))
-        if not isinstance(cpus, int) or isinstance(cpus, bool) or cpus < 1:
-            raise bad(f"cells[{i}].cpus must be an integer >= 1, got {cpus!r}")
+    validate_suite(suite, path)  # every key (unknown ones refused), type and range
+    check_agent_kwargs(suite, path)
     refs = suite.get("reference", {})
     if not isinstance(refs, dict):
         raise bad("'reference' must map env ids to {source, rows}")
@@ -140,10 +127,15 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
                  extra_agents: list[str] | None = None) -> list[Cell]:
     """The grid of cells of ``suite`` after command-line filters and overrides."""
     from benchmarks.agents import REFERENCE_AGENTS, resolve_agent
+    from benchmarks.suite_schema import check_env_kwargs
 
     import gymnasium as gym
     import lfd_envs  # noqa: F401
 
+    if budget is not None and (isinstance(budget, bool) or not isinstance(budget, int) or budget < 1):
+        raise ValueError(f"budget must be an integer >= 1, got {budget!r}")
+    if seeds is not None and not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in seeds):
+        raise ValueError(f"seeds must be non-negative integers, got {seeds!r}")
     cells: list[Cell] = []
     known_envs = [c["env"] for c in suite["cells"]]
     suite_agents = {name for c in suite["cells"] for name in c.get("agents", {})}
@@ -163,6 +155,7 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
                 raise ValueError(f"cannot import {module!r} for env {env_id!r}: {exc}") from exc
         if bare_id not in gym.registry:
             raise ValueError(f"unknown env {env_id!r}; registered lfd envs: {sorted(lfd_envs.ENV_SPECS)}")
+        check_env_kwargs(env_id, dict(spec.get("env_kwargs", {})), f"suite {suite.get('name', '?')!r}, env {env_id!r}")
         cell_agents: dict[str, dict] = dict(spec.get("agents", {}))
         for extra in extra_agents or []:
             cell_agents.setdefault(extra, {})

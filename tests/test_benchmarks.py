@@ -500,3 +500,53 @@ def test_sb3_agents_train_on_scaled_rewards_when_asked():
     assert reward != 0.0 and reward == pytest.approx(10.0 * float(plain.step(action[0])[1]), rel=1e-5)
     with pytest.raises(ValueError, match="reward_scale"):
         resolve_agent("sac")(PointReachEnv(), reward_scale=-1.0)
+
+
+@pytest.mark.parametrize("name", bench.available_suites())
+def test_every_shipped_suite_fits_the_schema(name):
+    bench.load_suite(name)  # schema, agents and their kwargs
+
+
+@pytest.mark.parametrize("change,match", [
+    (lambda s: s.update(budgte=5), r"unknown key\(s\) 'budgte' \(did you mean 'budget'\?\) in the top level"),
+    (lambda s: s.update(eval_epsiodes=5), r"'eval_epsiodes' \(did you mean 'eval_episodes'\?\)"),
+    (lambda s: s["cells"][0].update(env_kwarg={}), r"'env_kwarg' .* in cells\[0\]"),
+    (lambda s: s["cells"][0].update(agent=s["cells"][0].pop("agents")), r"'agent' \(did you mean 'agents'\?\)"),
+    (lambda s: s.update(budget=-5), r"budget must be an integer >= 1.*got -5"),
+    (lambda s: s.update(eval_episodes=0), r"eval_episodes must be an integer >= 1.*got 0"),
+    (lambda s: s.update(seeds="abc"), r"seeds must be a non-empty list .*got 'abc'"),
+    (lambda s: s.update(seeds=[0, "1"]), r"seeds\[1\] must be a non-negative integer"),
+    (lambda s: s["cells"][0].update(budget=2.5), r"cells\[0\].budget must be an integer"),
+    (lambda s: s["cells"][0]["agents"].update(sac={"learnig_starts": 5}),
+     r"cells\[0\].agents.sac: unknown keyword\(s\) \['learnig_starts'\] for agent 'sac'"),
+    (lambda s: s["cells"][0]["agents"].update(bc={"n_epoch": 5}), r"unknown keyword\(s\) \['n_epoch'\]"),
+    (lambda s: s["cells"][0]["agents"].update(random={"x": 1}), r"unknown keyword\(s\) \['x'\] for agent 'random'"),
+    (lambda s: s["cells"][0]["agents"].update(nope={}), r"cells\[0\].agents: unknown agent 'nope'"),
+])
+def test_suite_mistakes_are_refused_naming_key_and_file(tmp_path, capsys, change, match):
+    suite = {"seeds": [0], "budget": 20, "eval_episodes": 2,
+             "cells": [{"env": "Push2DObstacle-v0", "agents": {"random": {}, "sac": {"learning_starts": 1}}}]}
+    change(suite)
+    path = tmp_path / "typo.json"
+    path.write_text(json.dumps(suite))
+    assert bench.main(["--suite", str(path), "--out", str(tmp_path / "res"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert str(path) in err and re.search(match, err), err
+    assert not (tmp_path / "res").exists()  # nothing trained
+
+
+def test_bad_env_kwargs_and_agent_specs_fail_before_training(tmp_path, capsys):
+    suite = {"name": "bad-env", "cells": [{"env": "Push2DObstacle-v0", "env_kwargs": {"horizon": -3},
+                                            "agents": {"random": {}}}]}
+    bench.check_suite(suite)  # the schema cannot tell: the env can
+    with pytest.raises(ValueError, match=r"'bad-env', env 'Push2DObstacle-v0'.*env_kwargs.*horizon"):
+        bench.expand_cells(suite)
+    with pytest.raises(ValueError, match="must be 'package.module:factory' with both parts"):
+        resolve_agent(":factory")
+    path = _suite(tmp_path)
+    assert bench.main(["--suite", str(path), "--agent", ":factory", "--out", str(tmp_path / "res")]) == 2
+    assert "both parts" in capsys.readouterr().err
+    for override in (["--budget", "-5"], ["--seeds", "-1"]):
+        assert bench.main(["--suite", str(path), *override, "--out", str(tmp_path / "res")]) == 2
+        assert "must be" in capsys.readouterr().err
+    assert not (tmp_path / "res").exists()
