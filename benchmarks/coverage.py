@@ -84,6 +84,16 @@ class EndEffectorRecorder:
             self.steps += 1
         return out
 
+    def get_state(self) -> dict[str, Any]:
+        """What was recorded so far (for a checkpoint; :meth:`set_state` loads it)."""
+        return {"steps": self.steps, "cells": sorted(self.cells), "points": list(self.points)}
+
+    def set_state(self, state: dict[str, Any]) -> None:
+        """Continue from a :meth:`get_state` of a recorder with the same settings."""
+        self.steps = int(state["steps"])
+        self.cells = {tuple(c) for c in state["cells"]}
+        self.points = [tuple(p) for p in state["points"]]
+
     def detach(self) -> None:
         """Stop recording (restores the env's own ``step``)."""
         if self.base.__dict__.get("step") == self._recording_step:

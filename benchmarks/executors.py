@@ -48,7 +48,12 @@ class CellsFailed(RuntimeError):
         super().__init__(f"{len(failures)} cell(s) failed:\n{lines}")
 
 
-def _execute(cell: Any, demo_cache: str | None, threads: int | None) -> dict[str, Any]:
+def _checkpoint_folder(checkpoints: str | Path | None, cell: Any) -> Path | None:
+    """The cell's own folder under the checkpoint root (None: no checkpoints)."""
+    return Path(checkpoints) / cell.key if checkpoints else None
+
+
+def _execute(cell: Any, demo_cache: str | None, threads: int | None, checkpoints: str | None = None) -> dict[str, Any]:
     """Worker entry point: run one cell (module-level so processes and Ray can import it)."""
     from benchmarks.run import run_cell
 
@@ -57,7 +62,8 @@ def _execute(cell: Any, demo_cache: str | None, threads: int | None) -> dict[str
     torch.set_flush_denormal(True)  # see run_serial
     if threads:
         torch.set_num_threads(int(threads))
-    return run_cell(cell, progress=False, demo_cache=Path(demo_cache) if demo_cache else None)
+    return run_cell(cell, progress=False, demo_cache=Path(demo_cache) if demo_cache else None,
+                    checkpoints=_checkpoint_folder(checkpoints, cell))
 
 
 def flush_denormals_enabled() -> bool:
@@ -71,7 +77,8 @@ def _error(exc: BaseException) -> str:
     return "".join(traceback.format_exception_only(type(exc), exc)).strip()
 
 
-def run_serial(cells: list[Any], done: Done, *, demo_cache: Path | None, progress: bool = True) -> None:
+def run_serial(cells: list[Any], done: Done, *, demo_cache: Path | None, progress: bool = True,
+               checkpoints: Path | None = None) -> None:
     """Run ``cells`` one after another in this process."""
     import torch
     from tqdm import tqdm
@@ -89,7 +96,8 @@ def run_serial(cells: list[Any], done: Done, *, demo_cache: Path | None, progres
         # (threads wait for each other whenever another process holds a core)
         torch.set_num_threads(max(1, int(getattr(cell, "cpus", 1))))
         try:
-            result = run_cell(cell, progress=progress, demo_cache=demo_cache)
+            result = run_cell(cell, progress=progress, demo_cache=demo_cache,
+                              checkpoints=_checkpoint_folder(checkpoints, cell))
         except Exception as exc:  # report, keep going: the other cells are independent
             traceback.print_exc(file=sys.stderr)
             failures.append(CellFailure(cell, _error(exc)))
@@ -103,6 +111,7 @@ def run_serial(cells: list[Any], done: Done, *, demo_cache: Path | None, progres
 
 
 def run_processes(cells: list[Any], done: Done, *, jobs: int, demo_cache: Path | None, progress: bool = True,
+                  checkpoints: Path | None = None,
                   retries: int = 2) -> None:
     """Run ``cells`` in ``jobs`` spawned worker processes; retry cells whose worker died."""
     import multiprocessing as mp
@@ -116,7 +125,8 @@ def run_processes(cells: list[Any], done: Done, *, jobs: int, demo_cache: Path |
     while todo:
         died = []
         with ProcessPoolExecutor(max_workers=jobs, mp_context=mp.get_context("spawn")) as pool:
-            futures = {pool.submit(_execute, c, str(demo_cache) if demo_cache else None, threads): c for c in todo}
+            futures = {pool.submit(_execute, c, str(demo_cache) if demo_cache else None, threads,
+                                   str(checkpoints) if checkpoints else None): c for c in todo}
             pending = set(futures)
             while pending:
                 finished, pending = wait(pending, return_when=FIRST_COMPLETED)
@@ -149,6 +159,7 @@ def run_processes(cells: list[Any], done: Done, *, jobs: int, demo_cache: Path |
 
 
 def run_ray(cells: list[Any], done: Done, *, address: str | None, demo_cache: Path | None, progress: bool = True,
+            checkpoints: Path | None = None,
             retries: int = 2) -> None:
     """Run every cell as a Ray task (``num_cpus`` = the cell's ``cpus``) and gather results here."""
     try:
@@ -171,7 +182,7 @@ def run_ray(cells: list[Any], done: Done, *, address: str | None, demo_cache: Pa
                 failures.append(CellFailure(cell, f"asks for {cpus} CPUs; the cluster has {capacity:g}"))
                 continue
             ref = remote.options(num_cpus=cpus, max_retries=retries, retry_exceptions=False).remote(
-                cell, str(demo_cache) if demo_cache else None, cpus)
+                cell, str(demo_cache) if demo_cache else None, cpus, str(checkpoints) if checkpoints else None)
             refs[ref] = cell
         pending = list(refs)
         with tqdm(total=len(refs), desc="cells (ray)", disable=not progress, file=sys.stderr) as bar:
@@ -196,8 +207,10 @@ def run_ray(cells: list[Any], done: Done, *, address: str | None, demo_cache: Pa
 
 
 def run_cells(cells: list[Any], done: Done, *, executor: str = "local", jobs: int = 1, address: str | None = None,
-              demo_cache: Path | None = None, progress: bool = True) -> None:
-    """Dispatch to the executor named ``executor`` (module docstring)."""
+              demo_cache: Path | None = None, progress: bool = True, checkpoints: Path | None = None) -> None:
+    """Dispatch to the executor named ``executor`` (module docstring); ``checkpoints`` is the root
+    folder of the cells' checkpoints (:mod:`benchmarks.checkpoints`; on a cluster, a folder every
+    node can write, as ``--out`` is), None for none."""
     if executor not in EXECUTORS:
         raise ValueError(f"unknown executor {executor!r}; valid: {list(EXECUTORS)}")
     if jobs < 1:
@@ -205,8 +218,9 @@ def run_cells(cells: list[Any], done: Done, *, executor: str = "local", jobs: in
     if not cells:
         return
     if executor == "ray":
-        run_ray(cells, done, address=address, demo_cache=demo_cache, progress=progress)
+        run_ray(cells, done, address=address, demo_cache=demo_cache, progress=progress, checkpoints=checkpoints)
     elif jobs == 1:
-        run_serial(cells, done, demo_cache=demo_cache, progress=progress)
+        run_serial(cells, done, demo_cache=demo_cache, progress=progress, checkpoints=checkpoints)
     else:
-        run_processes(cells, done, jobs=min(jobs, len(cells)), demo_cache=demo_cache, progress=progress)
+        run_processes(cells, done, jobs=min(jobs, len(cells)), demo_cache=demo_cache, progress=progress,
+                      checkpoints=checkpoints)

@@ -56,6 +56,7 @@ class Cell:
     tags: dict[str, Any] = field(default_factory=dict)
     cpus: int = 1  #: CPU cores the cell asks a cluster scheduler for
     deterministic: bool = True  #: evaluation acts with ``predict(obs, deterministic=...)``
+    checkpoint_steps: int | None = None  #: a training stop (and checkpoint) every this many env steps
 
     @property
     def key(self) -> str:
@@ -177,6 +178,7 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
                     tags={k: spec[k] for k in ("label", "notes", "coverage_steps") if k in spec},
                     cpus=int(spec.get("cpus", suite.get("cpus", 1))),
                     deterministic=bool(spec.get("deterministic", suite.get("deterministic", True))),
+                    checkpoint_steps=spec.get("checkpoint_steps", suite.get("checkpoint_steps")),
                 ))
     if not cells and agents:
         raise ValueError(f"no cell of suite {suite['name']!r}{' for env(s) ' + str(envs) if envs else ''} lists "
@@ -261,7 +263,57 @@ def git_commit() -> str:
         return "unknown"
 
 
-def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) -> dict[str, Any]:
+def training_stops(budget: int, curve_points: int, checkpoint_steps: int | None = None) -> list[tuple[int, bool]]:
+    """``(env steps, is a curve point)`` of every stop of a training run, in order: the
+    ``curve_points`` evenly spaced curve points and every multiple of ``checkpoint_steps``."""
+    points = max(1, int(curve_points))
+    curve = [budget * (i + 1) // points for i in range(points)]
+    extra = range(checkpoint_steps, budget, checkpoint_steps) if checkpoint_steps else ()
+    stops = [(s, True) for s in curve] + [(s, False) for s in extra if s not in set(curve)]
+    return sorted(stops, key=lambda stop: stop[0])
+
+
+def stop_seed(seed: int, stop: int) -> int:
+    """Seed of the generators when training goes on after stop ``stop`` of a run seeded ``seed``."""
+    return int(np.random.SeedSequence([int(seed), int(stop)]).generate_state(1)[0])
+
+
+@dataclass
+class _Training:
+    """The objects of one stretch of a cell's training (rebuilt at every checkpoint)."""
+
+    env: Any
+    eval_env: Any
+    agent: Any
+    recorder: Any = None
+
+    def close(self) -> None:
+        if self.recorder is not None:
+            self.recorder.detach()
+        close_agent = getattr(self.agent, "close", None)
+        if callable(close_agent):  # agents that hold envs of their own (e.g. MAIL's validation env)
+            close_agent()
+        self.env.close()
+        self.eval_env.close()
+
+
+def _build_training(cell: Cell, factory: Any, kwargs: dict[str, Any]) -> _Training:
+    import gymnasium as gym
+
+    from benchmarks.budget import StepCounter
+
+    env = StepCounter(gym.make(cell.env_id, **cell.env_kwargs))
+    recorder = None
+    if cell.tags.get("coverage_steps"):  # end-effector positions of the first training steps
+        from benchmarks.coverage import EndEffectorRecorder
+
+        recorder = EndEffectorRecorder(env, int(cell.tags["coverage_steps"]))
+    eval_env = gym.make(cell.env_id, **cell.env_kwargs)
+    return _Training(env, eval_env, factory(env, cell.seed, **kwargs), recorder)
+
+
+def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None,
+             checkpoints: Path | None = None) -> dict[str, Any]:
     """Train ``cell.agent`` for ``cell.budget`` steps with a learning curve, then evaluate it.
 
     ``demo_cache`` is the demonstration cache folder handed to the built-in demonstration
@@ -271,59 +323,81 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
     with ``coverage_steps`` N also records where the end-effector went during the first N
     training steps (``coverage``, :class:`benchmarks.coverage.EndEffectorRecorder`). An agent that
     acts with its best checkpoint records each chunk's validation score (``validation_scores``).
+
+    ``checkpoints`` (a folder, :class:`benchmarks.checkpoints.CheckpointStore`): a learner with a
+    training state (:func:`lfd_agents.training_state.supports_training_state`) saves it at every
+    stop (:func:`training_stops`) and goes on from a fresh learner loaded from the save, so a
+    re-run after a kill resumes from the newest save with the uninterrupted result. Without a
+    folder the learner is still rebuilt at every stop (the same result), but nothing is saved.
     """
-    import gymnasium as gym
     from tqdm import tqdm
 
     import lfd_envs  # noqa: F401  (registers the ids; a worker process starts without them)
     from benchmarks.agents import resolve_agent
-    from benchmarks.budget import StepCounter, spent
+    from benchmarks.budget import spent
+    from benchmarks.checkpoints import CheckpointStore
+    from lfd_agents.training_state import get_training_state, reseed, set_training_state, supports_training_state
 
     module = cell.env_id.rpartition(":")[0]
     if module:
         importlib.import_module(module)
     factory = resolve_agent(cell.agent)
     environment = environment_info()  # before training: the commit whose code the cell runs with
-    env = StepCounter(gym.make(cell.env_id, **cell.env_kwargs))
-    recorder = None
-    if cell.tags.get("coverage_steps"):  # end-effector positions of the first training steps
-        from benchmarks.coverage import EndEffectorRecorder
-
-        recorder = EndEffectorRecorder(env, int(cell.tags["coverage_steps"]))
-    eval_env = gym.make(cell.env_id, **cell.env_kwargs)
     kwargs = dict(cell.agent_kwargs)
     if demo_cache is not None and getattr(factory, "uses_demo_cache", False):
         kwargs.setdefault("demo_cache", str(demo_cache))
+    store = CheckpointStore(Path(checkpoints)) if checkpoints is not None else None
     t0 = time.perf_counter()
-    agent = factory(env, cell.seed, **kwargs)
-    curve: list[dict[str, float]] = []
-    trains = getattr(agent, "needs_training", True)
-    points = max(1, cell.curve_points) if trains else 0
-    done_steps = 0
+    run = _build_training(cell, factory, kwargs)
+    trains = getattr(run.agent, "needs_training", True)
+    stops = training_stops(cell.budget, cell.curve_points, cell.checkpoint_steps) if trains else []
+    resumable = trains and supports_training_state(run.agent) and _accepts_reset(run.agent)
+    saved = store.load() if (store is not None and resumable) else None
+    if saved is not None and (saved["cell"] != _cell_identity(cell) or saved["stop"] >= len(stops)):
+        saved = None  # a save of another configuration of this cell: start again
+    curve: list[dict[str, float]] = saved["curve"] if saved else []
+    done_steps, first, earlier = (saved["steps"], saved["stop"] + 1, saved["train_time"]) if saved else (0, 0, 0.0)
+    if saved:
+        _restore(run, saved, first, cell.seed, set_training_state, reseed)
     curve_episodes = max(1, min(cell.eval_episodes, 5))
-    for i in tqdm(range(points), desc=f"{cell.agent}@{cell.env_id} s{cell.seed}", disable=not progress,
-                  leave=False, file=sys.stderr):
-        chunk = cell.budget * (i + 1) // points - done_steps
-        if chunk > 0:
-            agent.learn(total_timesteps=chunk, **({"reset_num_timesteps": False} if _accepts_reset(agent) and i else {}))
-            done_steps += chunk
-        scores = evaluate_episodes(agent, eval_env, curve_episodes, seed=10_000 + cell.seed,
-                                   deterministic=cell.deterministic)
-        point = {"steps": done_steps, "mean_normalized_performance": float(np.mean(scores["normalized_performance"]))}
-        if "is_success" in scores:
-            point["success_rate"] = float(np.mean(scores["is_success"]))
-        curve.append(point)
-    train_time = time.perf_counter() - t0
+    first_steps, started = done_steps, time.time()
+    bar = tqdm(total=cell.budget, initial=done_steps, desc=f"{cell.agent}@{cell.env_id} s{cell.seed}",
+               disable=not progress or not stops, leave=False, file=sys.stderr, unit="step")
+    for k in range(first, len(stops)):
+        target, is_point = stops[k]
+        if target > done_steps:
+            continuing = k > 0 and _accepts_reset(run.agent)
+            run.agent.learn(total_timesteps=target - done_steps, **({"reset_num_timesteps": False} if continuing else {}))
+            bar.update(target - done_steps)
+            done_steps = target
+        if is_point:
+            scores = evaluate_episodes(run.agent, run.eval_env, curve_episodes, seed=10_000 + cell.seed,
+                                       deterministic=cell.deterministic)
+            point = {"steps": done_steps, "mean_normalized_performance": float(np.mean(scores["normalized_performance"]))}
+            if "is_success" in scores:
+                point["success_rate"] = float(np.mean(scores["is_success"]))
+            curve.append(point)
+        if resumable and k + 1 < len(stops):  # save, then go on from a learner loaded from the save
+            state = {"cell": _cell_identity(cell), "stop": k, "steps": done_steps, "curve": curve,
+                     "train_time": earlier + time.perf_counter() - t0, "env_steps": run.env.env_steps,
+                     "agent": get_training_state(run.agent),
+                     "recorder": run.recorder.get_state() if run.recorder is not None else None}
+            if store is not None:  # both paths go on from what was written, so a resumed run matches
+                store.write_progress(steps=done_steps, budget=cell.budget, started=started,
+                                     rate=(done_steps - first_steps) / max(time.perf_counter() - t0, 1e-9))
+                store.save(state)
+                state = store.load()
+            run.close()
+            run = _build_training(cell, factory, kwargs)
+            _restore(run, state, k + 1, cell.seed, set_training_state, reseed)
+    bar.close()
+    train_time = earlier + time.perf_counter() - t0
     t1 = time.perf_counter()
-    final = evaluate_episodes(agent, eval_env, cell.eval_episodes, seed=cell.seed, deterministic=cell.deterministic)
+    final = evaluate_episodes(run.agent, run.eval_env, cell.eval_episodes, seed=cell.seed,
+                              deterministic=cell.deterministic)
     finals = final.pop("normalized_performance")
     eval_time = time.perf_counter() - t1
-    close_agent = getattr(agent, "close", None)
-    if callable(close_agent):  # agents that hold envs of their own (e.g. MAIL's validation env)
-        close_agent()
-    env.close()
-    eval_env.close()
-    return {
+    result = {
         "cell": {k: v for k, v in cell.__dict__.items()},
         "final_normalized_performance": finals,
         "final_metrics": final,  # REPORTED_METRICS the env has, one value per episode
@@ -331,12 +405,30 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None) 
         "train_wall_time_s": train_time,
         "eval_wall_time_s": eval_time,
         "trained_steps": done_steps if trains else 0,
-        **spent(agent, env),
-        **_validation_scores(agent),
-        **({"coverage": recorder.summary()} if recorder is not None else {}),
+        **spent(run.agent, run.env),
+        **_validation_scores(run.agent),
+        **({"coverage": run.recorder.summary()} if run.recorder is not None else {}),
         "environment": environment,
         "finished_at": time.strftime("%Y-%m-%d %H:%M:%S"),
     }
+    if saved:
+        result["resumed_at_steps"] = saved["steps"]
+    run.close()
+    return result
+
+
+def _cell_identity(cell: Cell) -> dict[str, Any]:
+    """The settings a checkpoint belongs to (a save of other settings is not resumed)."""
+    return json.loads(json.dumps({k: v for k, v in cell.__dict__.items() if k != "tags"}, default=str))
+
+
+def _restore(run: _Training, state: dict[str, Any], stop: int, seed: int, set_state: Any, reseed: Any) -> None:
+    """Load a saved training state into a freshly built ``run`` and seed what goes on after ``stop - 1``."""
+    set_state(run.agent, state["agent"])
+    run.env.env_steps = int(state["env_steps"])
+    if run.recorder is not None and state.get("recorder") is not None:
+        run.recorder.set_state(state["recorder"])
+    reseed(run.agent, stop_seed(seed, stop))
 
 
 def _validation_scores(agent: Any) -> dict[str, list[float]]:
@@ -362,6 +454,7 @@ def run_grid(cells: list[Cell], out: Path, progress: bool = True, force: bool = 
     Raises :class:`benchmarks.executors.CellsFailed` after the other cells finished if any
     cell failed (their results are written all the same).
     """
+    from benchmarks.checkpoints import CHECKPOINT_DIRNAME, CheckpointStore
     from benchmarks.demo_cache import CACHE_DIRNAME
     from benchmarks.executors import run_cells
     from benchmarks.storage import CorruptResult, check_writable, read_result, write_result
@@ -371,7 +464,9 @@ def run_grid(cells: list[Cell], out: Path, progress: bool = True, force: bool = 
     for cell in cells:
         path = out / f"{cell.key}.json"
         paths.append(path)
-        if path.exists() and not force:
+        if force:  # a forced cell starts from zero, not from an earlier run's checkpoint
+            CheckpointStore.for_cell(out, cell.key).remove()
+        elif path.exists():
             try:
                 read_result(path)
                 continue
@@ -381,9 +476,10 @@ def run_grid(cells: list[Cell], out: Path, progress: bool = True, force: bool = 
 
     def done(cell: Cell, result: dict[str, Any]) -> None:
         write_result(out / f"{cell.key}.json", result)  # atomic: a kill never leaves half a file
+        CheckpointStore.for_cell(out, cell.key).remove()
 
     run_cells(todo, done, executor=executor, jobs=jobs, address=address, demo_cache=out / CACHE_DIRNAME,
-              progress=progress)
+              progress=progress, checkpoints=out / CHECKPOINT_DIRNAME)
     return paths
 
 

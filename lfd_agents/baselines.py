@@ -311,6 +311,7 @@ class BC(BaseAlgorithm):
         self.aug_pad = int(aug_pad)
         self._episodes = load_episodes(demonstrations)
         self.dataset: ReplayBuffer | DictReplayBuffer | None = None
+        self._epochs_done = 0  #: epochs run since the last learn(reset_num_timesteps=True)
         if _init_setup_model:
             self._setup_model()
 
@@ -354,13 +355,21 @@ class BC(BaseAlgorithm):
 
     def learn(self, total_timesteps: int = 0, callback: Any = None, log_interval: int = 1, tb_log_name: str = "BC",
               reset_num_timesteps: bool = True, progress_bar: bool = False, *, epochs: int | None = None) -> "BC":
-        """Run ``epochs`` (default: :meth:`epochs_per_learn`) epochs over the demonstrations.
+        """Run ``epochs`` epochs over the demonstrations; by default :meth:`epochs_per_learn`, of
+        which a continuing call (``reset_num_timesteps=False``) runs only those not run yet.
 
-        ``total_timesteps`` is accepted for harness compatibility and ignored (BC is offline).
+        ``total_timesteps`` is accepted for harness compatibility and ignored (BC is offline): a
+        harness that calls ``learn`` once per curve point trains the configured updates in all,
+        however many curve points there are.
         """
         if self.dataset is None:
             raise RuntimeError("BC has no demonstrations; pass demonstrations= or call set_demonstrations()")
-        n_epochs = self.epochs_per_learn() if epochs is None else int(epochs)
+        if reset_num_timesteps:
+            self._epochs_done = 0
+        if epochs is not None:
+            n_epochs = int(epochs)
+        else:
+            n_epochs = max(0, self.epochs_per_learn() - self._epochs_done)
         _, callback = self._setup_learn(0, callback, reset_num_timesteps, tb_log_name, progress_bar)
         callback.on_training_start(locals(), globals())
         self.policy.set_training_mode(True)
@@ -380,6 +389,7 @@ class BC(BaseAlgorithm):
                 self.policy.optimizer.step()
                 losses.append(loss.detach())
             self._n_updates += len(losses)
+            self._epochs_done += 1
             self.logger.record("train/epoch", epoch + 1)
             self.logger.record("train/bc_loss", float(th.stack(losses).double().mean()))
             self.logger.record("train/n_updates", self._n_updates)

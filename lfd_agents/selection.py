@@ -133,6 +133,35 @@ class SelectBest:
             return self.model.predict(obs, state, episode_start, deterministic)
         return self.selector.predict(obs, state, episode_start, deterministic)
 
+    def get_training_state(self) -> dict[str, Any]:
+        """``model``'s training state and the selection so far (:mod:`lfd_agents.training_state`)."""
+        from lfd_agents.training_state import get_training_state
+
+        best = self.selector.best_policy
+        return {"model": get_training_state(self.model), "scores": list(self.selector.scores),
+                "best_score": float(self.selector.best_score), "env_steps": int(self.selector.env_steps),
+                "best_policy": None if best is None else best.state_dict()}
+
+    def set_training_state(self, state: dict[str, Any]) -> None:
+        """Load a :meth:`get_training_state` of a ``SelectBest`` built the same way."""
+        from lfd_agents.training_state import set_training_state
+
+        set_training_state(self.model, state["model"])
+        selector = self.selector
+        selector.scores, selector.best_score = list(state["scores"]), float(state["best_score"])
+        selector.env_steps = int(state["env_steps"])
+        selector.best_policy = None
+        if state["best_policy"] is not None:
+            selector.best_policy = copy.deepcopy(self.model.policy)
+            selector.best_policy.load_state_dict(state["best_policy"])
+            selector.best_policy.set_training_mode(False)
+
+    def reseed(self, seed: int) -> None:
+        """Reseed ``model`` (validation episodes have fixed seeds of their own)."""
+        from lfd_agents.training_state import reseed
+
+        reseed(self.model, seed)
+
     @property
     def policy(self) -> Any:
         """The policy that ``model`` trains (not the best checkpoint's frozen copy)."""

@@ -78,6 +78,29 @@ class MoPAAgent:
                          reset_num_timesteps=reset_num_timesteps, **kwargs)
         return self
 
+    def get_training_state(self) -> dict[str, Any]:
+        """The model's training state plus the wrapper's counters: low-level steps, mode
+        statistics and the planner's query index (which, with its seed, seeds the next query)."""
+        from lfd_agents.training_state import get_training_state
+
+        planner = self.train_env.planner
+        return {"model": get_training_state(self.model), "low_level_steps": int(self.train_env.low_level_steps),
+                "stats": dict(self.train_env.stats), "ompl_queries": getattr(planner, "ompl_queries", None)}
+
+    def set_training_state(self, state: dict[str, Any]) -> None:
+        """Load a :meth:`get_training_state` of a ``MoPAAgent`` built the same way."""
+        from lfd_agents.training_state import set_training_state
+
+        set_training_state(self.model, state["model"])
+        self.train_env.low_level_steps = int(state["low_level_steps"])
+        self.train_env.stats = dict(state["stats"])
+        if state["ompl_queries"] is not None:
+            self.train_env.planner.ompl_queries = int(state["ompl_queries"])
+
+    def reseed(self, seed: int) -> None:
+        """Reseed the model and its env's next reset (the planner keeps its own query seeds)."""
+        self.model.set_random_seed(int(seed))
+
     def bind(self, env: gym.Env) -> None:
         """Act on ``env`` (unwrapped task env) through a MoPA wrapper of its own."""
         self._eval = make_mopa_env(env, **self.wrapper_kwargs)
