@@ -16,6 +16,8 @@ name                        file                    measured by
 ``expert-table``            docs/particle_tasks.md  :mod:`benchmarks.experts` (every row)
 ``speed-table``             docs/particle_tasks.md  :func:`benchmarks.speed.particle_env_rows`
 ``pick-place-speed-table``  docs/particle_tasks.md  :func:`benchmarks.speed.pick_place_speed_rows`
+``version-speed-table``     docs/particle_tasks.md  :func:`benchmarks.speed.version_rows` (``-v1``
+                                                    against ``-v0``)
 ``readme-expert-table``     README.md               :mod:`benchmarks.experts` (default set-ups), the
                                                     MuJoCo experts (success rates)
 ``readme-speed-table``      README.md               :mod:`benchmarks.speed` (engine, envs, renderer,
@@ -24,7 +26,7 @@ name                        file                    measured by
 ``mail-transfer-table``     docs/mail.md            :mod:`benchmarks.mail_bench` (table 2)
 ==========================  ======================  ==================================================
 
-Groups: ``particles`` (the three particle-task tables), ``readme``, ``mail``, ``experts``, ``speed``.
+Groups: ``particles`` (the four particle-task tables), ``readme``, ``mail``, ``experts``, ``speed``.
 ``--variants N`` (expert tables, default 100) and ``--episodes N`` (MuJoCo experts, default 50)
 trade precision for time; ``--quick`` runs everything at tiny settings (to check the command, not
 for numbers); ``--envs`` keeps only some particle tasks; ``--root DIR`` edits the files of another
@@ -140,6 +142,13 @@ class Runs:
         return self.once("pick-and-place speed limit", lambda: pick_place_speed_rows(
             variants=1 if self.s.quick else 4, steps=1 if self.s.quick else 3, configs=configs))
 
+    def versions(self) -> list[dict[str, Any]]:
+        from benchmarks.speed import VERSION_CONFIGS, version_rows
+
+        configs = tuple(c for c in VERSION_CONFIGS if self._keep(f"{c[0]}-v0") or self._keep(f"{c[0]}-v1"))
+        return self.once("-v1 against -v0 speed", lambda: version_rows(rounds=1 if self.s.quick else 3,
+                                                                        configs=configs))
+
     def mail(self) -> dict[str, Any]:
         from benchmarks import mail_bench
 
@@ -215,6 +224,18 @@ def pick_place_speed_table(runs: Runs) -> str:
                                    "particle, a random place), 3 steps on each of 4 train variants; env steps per "
                                    "second of the calling thread's CPU time; particle speed at the end of a step, "
                                    "distance from the workspace centre along x or y")
+
+
+def version_speed_table(runs: Runs) -> str:
+    """Env steps/s of the ``-v1`` ids against their ``-v0`` twins, measured side by side."""
+    lines = ["| task | action mode | pickers | frames/step `-v0` / `-v1` | env steps/s `-v0` | env steps/s `-v1` "
+             "| `-v1` / `-v0` |", "|---|---|---|---|---|---|---|"]
+    for r in runs.versions():
+        lines.append(f"| {r['env']} | {r['action_mode']} | {r['pickers']} | {r['v0_frames']:g} / {r['v1_frames']:g} | "
+                     f"{_g(r['v0_cpu_env_steps_per_s'])} | {_g(r['v1_cpu_env_steps_per_s'])} | {r['v1_vs_v0']:.2f}× |")
+    return "\n".join(lines) + stamp("version-speed-table", runs.s, "state observations, the same seeded random "
+                                   "actions on both versions, median of interleaved rounds; env steps per second "
+                                   "of the calling thread's CPU time")
 
 
 def _g(x: Any) -> str:
@@ -305,6 +326,7 @@ def readme_speed_table(runs: Runs) -> str:
              f"{env_rate('ClothFoldDiagonalPinned-v0', 'pick_place', 'state')} / "
              f"{'–'.join(_g(x) for x in dry_rates) or '—'} | original DryCloth 3.4 on FleX with a GPU |",
              f"| 32×32 render of a 40×40 cloth scene | {render[0]['cpu_ms_per_call']:.2f} ms | |"]
+    lines += [_readme_version_row(r) for r in runs.versions() if r["env"] == "ClothFold" and r["pickers"] == 2]
     if not runs.s.envs:
         sawyer = runs.once("Sawyer speed", lambda: speed.sawyer_env_rows(
             steps=20 if q else 150, image_steps=5 if q else 40, valid_checks=100 if q else 2000,
@@ -322,6 +344,12 @@ def readme_speed_table(runs: Runs) -> str:
                   + " ms | original ≈ 300 ms |"]
     return "\n".join(lines) + stamp("readme-speed-table", runs.s, "CPU time of the calling thread "
                                                                 "(Warp's CPU kernels and MuJoCo run on it)")
+
+
+def _readme_version_row(r: dict[str, Any]) -> str:
+    """README line of one ``-v1`` against ``-v0`` row of :func:`benchmarks.speed.version_rows`."""
+    return (f"| ClothFold {r['action_mode']} env steps/s, `-v1` / `-v0` (2 pickers, state) | "
+            f"{_g(r['v1_cpu_env_steps_per_s'])} / {_g(r['v0_cpu_env_steps_per_s'])} ({r['v1_vs_v0']:.2f}×) | |")
 
 
 def mail_dynamics_table(runs: Runs) -> str:
@@ -364,6 +392,7 @@ TABLES: dict[str, Table] = {
     "expert-table": Table("docs/particle_tasks.md", expert_table),
     "speed-table": Table("docs/particle_tasks.md", speed_table),
     "pick-place-speed-table": Table("docs/particle_tasks.md", pick_place_speed_table),
+    "version-speed-table": Table("docs/particle_tasks.md", version_speed_table),
     "readme-expert-table": Table("README.md", readme_expert_table),
     "readme-speed-table": Table("README.md", readme_speed_table),
     "mail-dynamics-table": Table("docs/mail.md", mail_dynamics_table),
@@ -371,11 +400,11 @@ TABLES: dict[str, Table] = {
 }
 GROUPS: dict[str, tuple[str, ...]] = {
     "all": tuple(TABLES),
-    "particles": ("expert-table", "speed-table", "pick-place-speed-table"),
+    "particles": ("expert-table", "speed-table", "pick-place-speed-table", "version-speed-table"),
     "readme": ("readme-expert-table", "readme-speed-table"),
     "mail": ("mail-dynamics-table", "mail-transfer-table"),
     "experts": ("expert-table", "readme-expert-table"),
-    "speed": ("speed-table", "readme-speed-table"),
+    "speed": ("speed-table", "version-speed-table", "readme-speed-table"),
 }
 
 
