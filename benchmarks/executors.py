@@ -59,11 +59,23 @@ def _execute(cell: Any, demo_cache: str | None, threads: int | None, checkpoints
 
     import torch
 
-    torch.set_flush_denormal(True)  # see run_serial
+    flush_denormals(True)  # see run_serial
     if threads:
         torch.set_num_threads(int(threads))
     return run_cell(cell, progress=False, demo_cache=Path(demo_cache) if demo_cache else None,
                     checkpoints=_checkpoint_folder(checkpoints, cell))
+
+
+def flush_denormals(enable: bool) -> None:
+    """``torch.set_flush_denormal(enable)``, with numpy's float limits computed first: numpy
+    derives them on first use, and with subnormals flushed it would find the smallest subnormal
+    to be zero (and warn "The value of the smallest subnormal ... is zero" each run)."""
+    import numpy as np
+    import torch
+
+    for dtype in (np.float16, np.float32, np.float64, np.longdouble):
+        np.finfo(dtype)  # cached by numpy with the true values
+    torch.set_flush_denormal(enable)
 
 
 def flush_denormals_enabled() -> bool:
@@ -88,7 +100,7 @@ def run_serial(cells: list[Any], done: Done, *, demo_cache: Path | None, progres
     # Weights and Adam moments that decay into float subnormals make every CPU matmul several
     # times slower as training goes on (DMfD: 40 -> 11 updates/s after ~6k updates); flush them.
     flushing = flush_denormals_enabled()
-    torch.set_flush_denormal(True)
+    flush_denormals(True)
     failures = []
     threads = torch.get_num_threads()
     for cell in tqdm(cells, desc="cells", disable=not progress, file=sys.stderr):
@@ -105,7 +117,7 @@ def run_serial(cells: list[Any], done: Done, *, demo_cache: Path | None, progres
         finally:
             torch.set_num_threads(threads)
         done(cell, result)
-    torch.set_flush_denormal(flushing)
+    flush_denormals(flushing)
     if failures:
         raise CellsFailed(failures)
 
@@ -165,7 +177,8 @@ def run_ray(cells: list[Any], done: Done, *, address: str | None, demo_cache: Pa
     try:
         import ray
     except ImportError as exc:
-        raise ValueError("--executor ray needs Ray: pip install 'lfd[cluster]' (or pip install 'ray[default]')") from exc
+        raise ValueError("--executor ray needs Ray: pip install -e '.[cluster]' in this checkout (the distribution "
+                         "is lfd-suite) or pip install 'ray[default]'") from exc
     from tqdm import tqdm
 
     started = False
