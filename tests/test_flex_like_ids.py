@@ -77,6 +77,8 @@ def test_the_flex_like_preset_is_the_v1_settings(task, kwargs):
     assert (v1.physics, v0.physics) == ("flex_like", "fast")
     assert v1.batch.sim.params == dataclasses.replace(v1.task.sim_params(), **V1_SETTINGS)
     assert v0.batch.sim.params == v0.task.sim_params()
+    defaults = type(v0.batch.sim.params)()  # the ``fast`` preset: the SimParams defaults, which every task keeps
+    assert all(getattr(v0.batch.sim.params, name) == getattr(defaults, name) for name in V1_SETTINGS)
     by_argument = gym.make(f"{task}-v0", obs_mode="state", physics="flex_like", **kwargs).unwrapped
     assert by_argument.batch.sim.params == v1.batch.sim.params and by_argument.batch.identity() == v1.batch.identity()
 
