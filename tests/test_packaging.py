@@ -22,6 +22,13 @@ def test_distribution_is_not_named_lfd():
     assert environment_info()["versions"]["lfd-suite"] == PYPROJECT["project"]["version"]
 
 
+def test_pytest_has_a_global_timeout_and_keeps_meaningful_warnings(request):
+    assert 60 <= float(request.config.getini("timeout")) <= 900  # pytest-timeout: a hung test fails
+    ignored = " ".join(request.config.getini("filterwarnings"))
+    assert "out of date" in ignored  # the -v0 ids are deliberate (see the README)
+    assert "always" not in ignored and "ignore::" not in ignored  # no blanket silencing
+
+
 def test_video_extra_keeps_pillow_and_records_mp4(tmp_path):
     (spec,) = PYPROJECT["project"]["optional-dependencies"]["video"]
     assert re.fullmatch(r"moviepy>=1\.0\.3,<2", spec)  # moviepy 2 caps pillow below 12
