@@ -4,6 +4,11 @@ A factory is called as ``factory(env, seed, **kwargs)`` and returns any object w
 ``learn(total_timesteps)`` and ``predict(obs, deterministic=True) -> (action, state)``
 (Stable-Baselines3's interface). Optional: ``reset()`` (called after every eval reset, for
 scripted or recurrent agents) and ``needs_training = False`` (skip ``learn``).
+
+A suite's agent kwargs are checked before training against the factory's named parameters; a
+factory that takes ``**kwargs`` may set ``factory.kwargs_target`` to a function returning the class
+or function they go to (``None``: it takes no others), so that those are checked too
+(:func:`benchmarks.suite_schema.accepted_kwargs`); without it any keyword is accepted.
 """
 
 from __future__ import annotations
