@@ -32,7 +32,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 __all__ = ["EndEffectorRecorder", "end_effector_xy", "load_coverage", "coverage_of", "plot_coverage",
-           "coverage_markdown"]
+           "coverage_figure", "coverage_markdown"]
 
 
 def end_effector_xy(base: Any) -> Callable[[], np.ndarray]:
@@ -145,25 +145,25 @@ def _obstacles(env_id: str) -> list[tuple[tuple[float, float], tuple[float, floa
     return []
 
 
-def plot_coverage(data: dict[str, list[dict[str, Any]]], png: Path | str, env_id: str = "",
-                  agents: Sequence[str] | None = None, seed: int | None = None) -> Path | None:
-    """Draw the recorded positions of each agent (one panel per agent, colour = time) into ``png``.
+def _has_points(run: dict[str, Any]) -> bool:
+    return len(run.get("points") or []) > 0
 
-    ``data`` is ``{agent: [coverage records]}`` (:func:`load_coverage`, :func:`coverage_of`);
-    ``env_id`` adds the env's obstacles where known (Push2DObstacle). ``seed`` selects one
-    seed's positions (default: the lowest recorded seed); the panel title gives the visited
-    cells of every seed. Returns the path, or None when nothing was recorded.
-    """
+
+def coverage_figure(data: dict[str, list[dict[str, Any]]], env_id: str = "",
+                    agents: Sequence[str] | None = None, seed: int | None = None) -> Any | None:
+    """The matplotlib figure of :func:`plot_coverage` (one panel per agent that recorded
+    positions, a colour bar of the training step), or None when no agent recorded any."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     from matplotlib.patches import Rectangle
 
-    names = [a for a in (agents or sorted(data)) if a in data]
+    names = [a for a in (agents or sorted(data)) if a in data and any(_has_points(r) for r in data[a])]
     if not names:
         return None
-    fig, axes = plt.subplots(1, len(names), figsize=(4.2 * len(names), 4.2), squeeze=False)
+    fig, axes = plt.subplots(1, len(names), figsize=(4.2 * len(names) + 1.0, 4.2), squeeze=False,
+                             layout="constrained")
     everything = np.concatenate([np.asarray(r["points"], dtype=float).reshape(-1, 2)
                                  for a in names for r in data[a]])
     boxes = _obstacles(env_id)
@@ -171,14 +171,17 @@ def plot_coverage(data: dict[str, list[dict[str, Any]]], png: Path | str, env_id
         corners = np.array([[c[0] + sx * h[0], c[1] + sy * h[1]] for c, h in boxes for sx in (-1, 1) for sy in (-1, 1)])
         everything = np.concatenate([everything, corners])
     lo, hi = everything.min(axis=0) - 0.05, everything.max(axis=0) + 0.05
+    chosen = {name: _shown_run(data[name], seed) for name in names}
+    last_step = max(max(1, run["steps"]) for run in chosen.values())
+    dots = None
     for ax, name in zip(axes[0], names):
-        runs = data[name]
-        run = next((r for r in runs if r.get("seed") == seed), runs[0]) if seed is not None else runs[0]
+        runs, run = data[name], chosen[name]
         pts = np.asarray(run["points"], dtype=float).reshape(-1, 2)
         for centre, half in boxes:
             ax.add_patch(Rectangle((centre[0] - half[0], centre[1] - half[1]), 2 * half[0], 2 * half[1],
                                    color="0.6", zorder=0))
-        ax.scatter(pts[:, 0], pts[:, 1], c=np.arange(len(pts)), cmap="viridis", s=3, zorder=1)
+        steps = np.arange(len(pts)) * max(1, int(run.get("every", 1)))  # the env step of each kept position
+        dots = ax.scatter(pts[:, 0], pts[:, 1], c=steps, cmap="viridis", vmin=0, vmax=last_step, s=3, zorder=1)
         cells = ", ".join(str(r["visited_cells"]) for r in runs)
         ax.set_title(f"{name} (seed {run.get('seed')}): first {run['steps']} steps\n"
                      f"visited {run['cell'] * 100:g} cm cells, seeds {cells}", fontsize=9)
@@ -187,7 +190,32 @@ def plot_coverage(data: dict[str, list[dict[str, Any]]], png: Path | str, env_id
         ax.set_aspect("equal")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("y [m]")
-    fig.tight_layout()
+    fig.colorbar(dots, ax=list(axes[0]), label="training step", shrink=0.85)
+    return fig
+
+
+def _shown_run(runs: list[dict[str, Any]], seed: int | None) -> dict[str, Any]:
+    """The record of ``seed`` if it has positions, else the first one that has."""
+    with_points = [r for r in runs if _has_points(r)]
+    return next((r for r in with_points if r.get("seed") == seed), with_points[0])
+
+
+def plot_coverage(data: dict[str, list[dict[str, Any]]], png: Path | str, env_id: str = "",
+                  agents: Sequence[str] | None = None, seed: int | None = None) -> Path | None:
+    """Draw the recorded positions of each agent (one panel per agent, colour = training step,
+    with a colour bar) into ``png``.
+
+    ``data`` is ``{agent: [coverage records]}`` (:func:`load_coverage`, :func:`coverage_of`);
+    ``env_id`` adds the env's obstacles where known (Push2DObstacle). ``seed`` selects one
+    seed's positions (default: the lowest recorded seed); the panel title gives the visited
+    cells of every seed. Agents that recorded no position get no panel. Returns the path, or
+    None when nothing was recorded.
+    """
+    import matplotlib.pyplot as plt
+
+    fig = coverage_figure(data, env_id, agents, seed)
+    if fig is None:
+        return None
     png = Path(png)
     png.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(png, dpi=110)

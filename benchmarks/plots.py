@@ -95,14 +95,25 @@ def plot_interval_estimates(estimates: Mapping[str, Mapping[str, float]], path: 
     return save_figure(fig, path)
 
 
-def plot_profiles(profiles: Mapping[str, np.ndarray], cis: Mapping[str, np.ndarray], taus: np.ndarray,
-                  path: Path) -> Path:
-    """rliable's performance profiles: fraction of runs with p̂ > τ."""
+#: title of the performance-profile figure
+PROFILES_TITLE = "Performance profiles: runs of every env, p̂ above each threshold τ"
+
+
+def profiles_figure(profiles: Mapping[str, np.ndarray], cis: Mapping[str, np.ndarray], taus: np.ndarray,
+                    title: str = PROFILES_TITLE) -> Any:
+    """The figure of :func:`plot_profiles` (not yet saved)."""
     from rliable import plot_utils
 
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(5, 3.2))
     plot_utils.plot_performance_profiles(profiles, taus, performance_profile_cis=cis, ax=ax,
                                          xlabel="normalized performance τ", ylabel="fraction of runs with p̂ > τ")
+    ax.set_title(title, fontsize=9)
     ax.legend(fontsize=7, loc="lower left")
-    return save_figure(fig, path)
+    return fig
+
+
+def plot_profiles(profiles: Mapping[str, np.ndarray], cis: Mapping[str, np.ndarray], taus: np.ndarray,
+                  path: Path, title: str = PROFILES_TITLE) -> Path:
+    """rliable's performance profiles (fraction of runs with p̂ > τ, with a title) saved at ``path``."""
+    return save_figure(profiles_figure(profiles, cis, taus, title), path)

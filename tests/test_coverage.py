@@ -93,3 +93,19 @@ def test_plot_and_markdown_from_results(tmp_path):
     assert "![coverage](plots/c.png)" in md and "| mopa_sac | 50 | 40, 44 | 42 |" in md
     assert plot_coverage({}, tmp_path / "x.png") is None
     assert coverage_markdown(load_coverage(tmp_path, "other", "Push2DObstacle-v0"), tmp_path / "y.png", tmp_path) == ""
+
+
+def test_coverage_picture_has_a_colour_bar_and_no_empty_panels(tmp_path):
+    from benchmarks.coverage import coverage_figure
+
+    rng = np.random.default_rng(1)
+    _fake_result(tmp_path, "mopa_sac", 0, rng.uniform(-0.4, 0.4, (50, 2)).round(4).tolist(), 40)
+    _fake_result(tmp_path, "sac", 0, [], 0)  # recorded nothing (e.g. no env step before the first stop)
+    data = load_coverage(tmp_path, "s", "Push2DObstacle-v0")
+    fig = coverage_figure(data, "Push2DObstacle-v0")
+    panels = [ax for ax in fig.axes if ax.get_label() != "<colorbar>"]
+    assert [ax.get_title().split(" ")[0] for ax in panels] == ["mopa_sac"]
+    (bar,) = [ax for ax in fig.axes if ax.get_label() == "<colorbar>"]
+    assert bar.get_ylabel() == "training step" and bar.get_ylim()[1] == 50
+    assert coverage_figure({"sac": data["sac"]}) is None
+    assert coverage_markdown({"sac": data["sac"]}, tmp_path / "z.png", tmp_path) == ""
