@@ -88,10 +88,7 @@ def test_tiny_suite_end_to_end_and_resume(tmp_path):
     assert bench.main(args) == 0
     files = sorted(out.rglob("*.json"))
     assert len(files) == 2
-    headline = board.read_text()
-    pages = sorted((tmp_path / "docs" / "results").glob("*.md"))
-    assert len(pages) == 1 and f"({pages[0].relative_to(tmp_path)})" in headline  # linked from the headline
-    text = pages[0].read_text()  # every cell in detail
+    text = board.read_text()
     for f in files:
         r = json.loads(f.read_text())
         finals = np.asarray(r["final_normalized_performance"])
@@ -99,7 +96,6 @@ def test_tiny_suite_end_to_end_and_resume(tmp_path):
         row = next(l for l in text.splitlines() if l.startswith(f"| {r['cell']['agent']} |"))
         assert f"{finals.mean():.3f} ± {finals.std():.3f}" in row
         assert f"{np.median(finals):.3f}" in row
-        assert any(l.startswith(f"| {r['cell']['agent']} | {finals.mean():.3f}") for l in headline.splitlines())
     rows = {l.split("|")[1].strip(): l for l in text.splitlines() if l.startswith("| ")}
     mean = lambda row: float(row.split("|")[5].split("±")[0])
     assert mean(rows[f"{__name__}:third_party_factory"]) > mean(rows["random"]) + 0.5
@@ -166,7 +162,7 @@ def test_demo_cache_under_out_rebuilt_when_broken_and_budgets_recorded(tmp_path,
     n = bc["demo_transitions"]
     assert n == 2 * 3  # two pick_place episodes of horizon 3
     assert bc["env_steps"] == 0 and bc["gradient_updates"] == 3 * int(np.ceil(n / 4))
-    lines = (tmp_path / "docs" / "results" / "bcs.md").read_text().splitlines()  # the appendix: every column
+    lines = (tmp_path / "lb.md").read_text().splitlines()
     head = [c.strip() for c in next(l for l in lines if l.startswith("| agent |")).split("|")]
     cols = [c.strip() for c in next(l for l in lines if l.startswith("| bc |")).split("|")]
     budget = [cols[head.index(k)] for k in ("env steps", "gradient updates", "demo transitions")]
@@ -280,11 +276,7 @@ def test_reference_rows_and_notes(tmp_path):
     path.write_text(json.dumps(suite))
     assert bench.main(["--suite", str(path), "--out", str(tmp_path / "res"), "--leaderboard",
                        str(tmp_path / "lb.md"), "--no-progress"]) == 0
-    headline = (tmp_path / "lb.md").read_text().splitlines()
-    i = next(k for k, l in enumerate(headline) if l.startswith("| random |"))
-    assert headline[i + 1].startswith("| *thesis: random* | 0.111 |")  # the thesis under ours in the headline
-    assert any(l.startswith("- lfd_test/PointReach-v0:") for l in headline)  # one verdict line per task
-    lines = (tmp_path / "docs" / "results" / "tiny.md").read_text().splitlines()
+    lines = (tmp_path / "lb.md").read_text().splitlines()
     i = next(k for k, l in enumerate(lines) if l.startswith("| random |"))
     assert lines[i + 1].startswith("| *thesis: random* |") and "0.111 ± 0.022" in lines[i + 1]
     assert "| 0.050 |" in lines[i + 1] and "| 0.200 |" in lines[i + 1]
