@@ -25,10 +25,10 @@ from benchmarks.coverage import coverage_markdown, coverage_of
 from benchmarks.agents import REFERENCE_AGENTS as _REFERENCE_AGENTS
 from benchmarks.run import REPORTED_METRICS
 from benchmarks.stats import iqm_and_mean, performance_profiles, probability_of_improvement, summarize
-from benchmarks.storage import CorruptResult, atomic_write_text, read_result, result_files
+from benchmarks.storage import CorruptResult, atomic_write_text, read_result, result_files, safe_name
 
-HEADER = ("| agent | seeds | episodes | 25th pct | mean ± std | median | 75th pct | IQM [95% CI] "
-          "| env steps | gradient updates | demo transitions | train wall time |")
+HEADER = ("| agent | seeds | episodes | 25th pct | mean ± std | median | 75th pct | per-seed means "
+          "| IQM [95% CI] | env steps | gradient updates | demo transitions | train wall time |")
 #: position of the env-steps column in a split row (``row.split("|")``)
 _ENV_STEPS_COLUMN = HEADER.split("|").index(" env steps ")
 #: agents that are references, not learners (never "baselines" of a comparison)
@@ -129,14 +129,26 @@ def _metric_cell(runs: list[dict[str, Any]], key: str) -> str:
     return f"{v.mean():.3f} ± {v.std():.3f}"
 
 
-def agent_row(agent: str, runs: list[dict[str, Any]], metrics: list[str] = ()) -> tuple[str, dict[str, float]]:
+def by_seed(runs: list[dict[str, Any]]) -> list[list[float]]:
+    """Each seed's evaluation scores, in seed order (the runs of the interval estimates)."""
+    return [list(r["final_normalized_performance"]) for r in sorted(runs, key=lambda r: r["cell"]["seed"])]
+
+
+def _interval(s: Any) -> str:
+    """``IQM [low, high]``; one seed has no interval (``IQM (1 seed)``)."""
+    if s.seeds < 2:
+        return f"{s.iqm:.3f} (1 seed)"
+    return f"{s.iqm:.3f} [{s.iqm_ci_low:.3f}, {s.iqm_ci_high:.3f}]"
+
+
+def agent_row(agent: str, runs: list[dict[str, Any]], metrics: list[str] = ()) -> tuple[str, dict[str, Any]]:
     """Markdown row and summary numbers for one agent on one env (``metrics``: extra columns)."""
-    values = np.concatenate([np.asarray(r["final_normalized_performance"], dtype=float) for r in runs])
-    s = summarize(values)
+    s = summarize(by_seed(runs))
     wall = float(np.mean([r.get("train_wall_time_s", 0.0) for r in runs]))
     extra = "".join(f" {_metric_cell(runs, k)} |" for k in metrics)
+    seeds = " / ".join(f"{m:.3f}" for m in s.seed_means)
     row = (f"| {agent} | {len(runs)} | {s.n} | {s.p25:.3f} | {s.mean:.3f} ± {s.std:.3f} | {s.median:.3f} | "
-           f"{s.p75:.3f} | {s.iqm:.3f} [{s.iqm_ci_low:.3f}, {s.iqm_ci_high:.3f}] |{extra} "
+           f"{s.p75:.3f} | {seeds} | {_interval(s)} |{extra} "
            f"{_budget(runs, 'env_steps')} | {_budget(runs, 'gradient_updates')} | "
            f"{_budget(runs, 'demo_transitions')} | {_fmt_time(wall)} |")
     return row, s.as_dict()
@@ -170,7 +182,7 @@ def reference_row(agent: str, source: str, row: dict[str, Any], metrics: list[st
     mean = _num(row, "mean") + (f" ± {_num(row, 'std')}" if "std" in row else "")
     extra = "".join(f" {_num(row, k)} |" for k in metrics)  # e.g. a reported success rate
     return (f"| *{prefix}: {agent}* | — | — | {_num(row, 'p25')} | {mean} | {_num(row, 'median')} | "
-            f"{_num(row, 'p75')} | — |{extra} — | — | — | — |")
+            f"{_num(row, 'p75')} | — | — |{extra} — | — | — | — |")
 
 
 def references_for(suite_config: dict[str, Any] | None, env_label: str, env_id: str) -> dict[str, Any] | None:
@@ -185,16 +197,17 @@ def references_for(suite_config: dict[str, Any] | None, env_label: str, env_id: 
     return entry
 
 
-def _episode_scores(runs: list[dict[str, Any]]) -> np.ndarray:
-    return np.concatenate([np.asarray(r["final_normalized_performance"], dtype=float) for r in runs])
+def _seed_scores(runs: list[dict[str, Any]]) -> np.ndarray:
+    """Per-seed mean p̂ (one run per seed)."""
+    return np.array([np.mean(v) for v in by_seed(runs)])
 
 
 def improvement(agents: dict[str, list[dict[str, Any]]]) -> dict[str, tuple[float, float, float]]:
-    """P(DMfD > baseline) with 95% CI for every learning baseline (episodes × seeds as runs)."""
+    """P(DMfD > baseline) with 95% CI for every learning baseline (seeds as runs)."""
     if IMPROVER not in agents:
         return {}
-    x = _episode_scores(agents[IMPROVER])
-    return {b: probability_of_improvement(x, _episode_scores(runs)) for b, runs in sorted(agents.items())
+    x = _seed_scores(agents[IMPROVER])
+    return {b: probability_of_improvement(x, _seed_scores(runs)) for b, runs in sorted(agents.items())
             if b != IMPROVER and b not in REFERENCE_AGENTS}
 
 
@@ -213,9 +226,18 @@ def seed_matrix(table: dict[str, dict[str, list[dict[str, Any]]]]) -> dict[str, 
     return out
 
 
+def is_headline(agents: dict[str, list[dict[str, Any]]]) -> bool:
+    """Whether a cell (env label) is marked ``"headline": true`` in its results."""
+    return any(r["cell"].get("tags", {}).get("headline") for runs in agents.values() for r in runs)
+
+
 def main_cells(table: dict[str, dict[str, list[dict[str, Any]]]]) -> dict[str, dict[str, list[dict[str, Any]]]]:
-    """For every env id, its cell with the most agents (the first such in label order): the
-    cells the aggregate compares agents on, leaving out ablation cells that run a few agents."""
+    """The cells a suite's headline and aggregate compare agents on: those marked headline if any
+    are; else, for every env id, its cell with the most agents (the first such in label order),
+    leaving out ablation cells that run a few agents."""
+    headline = {label: agents for label, agents in table.items() if is_headline(agents)}
+    if headline:
+        return dict(sorted(headline.items()))
     best: dict[str, str] = {}
     for label in sorted(table):
         env_id = next(r["cell"]["env_id"] for runs in table[label].values() for r in runs)
@@ -247,8 +269,10 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
         f"Commit(s): {', '.join(commits)}. Hardware: {hardware}; Python {pythons}. Suite: `{suite or 'all'}`.",
         "",
         "Each cell: final normalised performance p̂(H) over evaluation episodes (eval variants) × seeds — "
-        "25th percentile, mean ± std, median, 75th percentile (the thesis table format) and the "
-        "interquartile mean with a 95% stratified-bootstrap CI (rliable). Budget columns are what training "
+        "25th percentile, mean ± std, median, 75th percentile (the thesis table format) — then the mean of each "
+        "seed's episodes and the interquartile mean of those per-seed means with a 95% stratified-bootstrap CI "
+        "(rliable). A *run* is one training seed: its episodes are averaged before any interval is computed, "
+        "so the interval says how much another training run could differ. Budget columns are what training "
         "spent: steps in the training env, gradient updates, and demonstration transitions learnt from "
         "(BC: epochs × ⌈dataset size / batch size⌉ updates, no env steps). `expert` is the scripted oracle, `random` "
         "random actions (in pick-and-place: a random particle picked and placed at a random point, MAIL's random; "
@@ -260,14 +284,14 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
         lines += [str(suite_config["notes"]), ""]
     table = group_by_env(results)
     legacy = False
-    for env_label, agents in tqdm(sorted(table.items()), desc="leaderboard", disable=not progress, leave=False,
-                                  file=sys.stderr):
+    ordered = sorted(table.items(), key=lambda item: (not is_headline(item[1]), item[0]))  # headline cells first
+    for env_label, agents in tqdm(ordered, desc="leaderboard", disable=not progress, leave=False, file=sys.stderr):
         env_id = next(iter(agents.values()))[0]["cell"]["env_id"]
         ref = references_for(suite_config, env_label, env_id)
         ref_rows = dict(ref["rows"]) if ref else {}
         metrics = reported_metrics(agents)
         head = header(metrics)
-        lines += [f"## {env_label}", "", head, _sep(head)]
+        lines += [f"## {env_label}" + (" — headline" if is_headline(agents) else ""), "", head, _sep(head)]
         order = sorted(agents, key=lambda a: (a != "expert", a in REFERENCE_AGENTS, a))
         for agent in order:
             row = agent_row(agent, agents[agent], metrics)[0]
@@ -291,7 +315,7 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
         lines += [f"Note: {n}" for n in notes] + ([""] if notes else [])
         probs = improvement(agents)
         if probs:
-            lines.append("Probability of improvement (rliable, episodes × seeds as runs): " + "; ".join(
+            lines.append("Probability of improvement (rliable, seeds as runs): " + "; ".join(
                 f"P({IMPROVER} > {b}) = {p:.2f} [{lo:.2f}, {hi:.2f}]" for b, (p, lo, hi) in probs.items()))
             lines.append("")
         if plot_dir is not None:
@@ -311,12 +335,13 @@ def render_markdown(results: list[dict[str, Any]], *, command: str, suite: str |
                 lines += [cov, ""]
     if legacy:
         lines += ["\\* requested budget: these results were written before env steps were counted.", ""]
-    lines += _aggregate_section(table, suite, plot_dir, relative_to)
+    lines += _aggregate_section(table, suite, plot_dir, relative_to, suite_config)
     return "\n".join(lines)
 
 
 def _aggregate_section(table: dict[str, dict[str, list[dict[str, Any]]]], suite: str | None,
-                       plot_dir: Path | None, relative_to: Path) -> list[str]:
+                       plot_dir: Path | None, relative_to: Path,
+                       suite_config: dict[str, Any] | None = None) -> list[str]:
     cells = main_cells(table)
     if len(cells) < 2:
         return []
@@ -324,17 +349,26 @@ def _aggregate_section(table: dict[str, dict[str, list[dict[str, Any]]]], suite:
     if not scores:
         return []
     est = iqm_and_mean(scores)
+    thesis = thesis_means(cells, suite_config)
     left_out = len(table) - len(cells)
-    scope = (f"; per env, its cell with the most agents ({left_out} cell{'s' if left_out != 1 else ''} with fewer "
-             f"left out; ties go to the first label): {'; '.join(cells)}" if left_out else "")
+    if any(is_headline(agents) for agents in cells.values()):
+        scope = f"; the suite's headline cells: {'; '.join(cells)}"
+    elif left_out:
+        scope = (f"; per env, its cell with the most agents ({left_out} cell{'s' if left_out != 1 else ''} with "
+                 f"fewer left out; ties go to the first label): {'; '.join(cells)}")
+    else:
+        scope = ""
     lines = ["## Across environments", "",
              f"Agents run on all {len(cells)} environments{scope}; runs = seeds (per-seed mean p̂ on each env), "
-             "stratified-bootstrap 95% CIs (rliable).", "",
-             "| agent | runs × envs | IQM [95% CI] | mean [95% CI] |", "|---|---|---|---|"]
+             "stratified-bootstrap 95% CIs (rliable). *Thesis mean*: the mean of the reference rows over the same "
+             "environments, where every one has a row for the agent.", "",
+             "| agent | runs × envs | IQM [95% CI] | mean [95% CI] | thesis mean |", "|---|---|---|---|---|"]
     for agent, e in sorted(est.items(), key=lambda kv: -kv[1]["iqm"]):
+        ref = thesis.get(agent)
         lines.append(f"| {agent} | {scores[agent].shape[0]} × {scores[agent].shape[1]} | "
                      f"{e['iqm']:.3f} [{e['iqm_ci_low']:.3f}, {e['iqm_ci_high']:.3f}] | "
-                     f"{e['mean']:.3f} [{e['mean_ci_low']:.3f}, {e['mean_ci_high']:.3f}] |")
+                     f"{e['mean']:.3f} [{e['mean_ci_low']:.3f}, {e['mean_ci_high']:.3f}] | "
+                     f"{'—' if ref is None else f'{ref:.3f}'} |")
     lines.append("")
     if plot_dir is not None:
         taus = np.linspace(0.0, 1.0, 21)
@@ -346,14 +380,92 @@ def _aggregate_section(table: dict[str, dict[str, list[dict[str, Any]]]], suite:
     return lines
 
 
+def _reference_means(cells: dict[str, dict[str, list[dict[str, Any]]]], suite_config: dict[str, Any] | None
+                     ) -> dict[str, dict[str, float]]:
+    """``{env label: {agent: reported mean p̂}}`` of the suite's reference rows for these cells."""
+    out: dict[str, dict[str, float]] = {}
+    for label, agents in cells.items():
+        env_id = next(iter(agents.values()))[0]["cell"]["env_id"]
+        ref = references_for(suite_config, label, env_id)
+        rows = ref["rows"] if ref else {}
+        out[label] = {a: float(row["mean"]) for a, row in rows.items() if isinstance(row.get("mean"), (int, float))}
+    return out
+
+
+def thesis_means(cells: dict[str, dict[str, list[dict[str, Any]]]], suite_config: dict[str, Any] | None
+                 ) -> dict[str, float]:
+    """Mean over ``cells`` of each agent's reported mean, for agents reported on every one of them."""
+    refs = _reference_means(cells, suite_config)
+    agents = set.intersection(*(set(r) for r in refs.values())) if refs else set()
+    return {a: float(np.mean([r[a] for r in refs.values()])) for a in sorted(agents)}
+
+
 def _sep(head: str = HEADER) -> str:
     return "|" + "---|" * (head.count("|") - 1)
+
+
+# ------------------------------------------------------------------------------- headline
+def _headline_value(runs: list[dict[str, Any]]) -> str:
+    """``mean [95% CI]`` of the per-seed means (seeds as runs); one seed: ``mean (1 seed)``."""
+    s = summarize(by_seed(runs))
+    if s.seeds < 2:
+        return f"{s.mean:.3f} (1 seed)"
+    return f"{s.mean:.3f} [{s.mean_ci_low:.3f}, {s.mean_ci_high:.3f}]"
+
+
+def verdicts(cells: dict[str, dict[str, list[dict[str, Any]]]], suite_config: dict[str, Any] | None) -> list[str]:
+    """One line per cell: each learner's mean beside the thesis's, met (ours ≥ thesis) or not, by how much."""
+    refs = _reference_means(cells, suite_config)
+    lines = []
+    for label, agents in cells.items():
+        parts = []
+        for agent in sorted(a for a in agents if a in refs[label] and a not in REFERENCE_AGENTS):
+            ours = float(np.mean(_seed_scores(agents[agent])))
+            diff = ours - refs[label][agent]
+            parts.append(f"{agent} {ours:.3f} vs {refs[label][agent]:.3f}: "
+                         f"{'met' if diff >= 0 else 'not met'} ({diff:+.3f})")
+        lines.append(f"- {label}: " + ("; ".join(parts) if parts else "no learner here has a reported number."))
+    return lines
+
+
+def render_headline(results: list[dict[str, Any]], *, suite: str, suite_config: dict[str, Any] | None,
+                    command: str, page: str) -> str:
+    """The suite's section of ``leaderboard.md``: one table of its headline cells (agents × tasks,
+    the thesis's row under each agent), a verdict per task, the budget cut and a link to ``page``
+    (the appendix with every cell)."""
+    config = suite_config or {}
+    table = group_by_env(results)
+    cells = main_cells(table)
+    refs = _reference_means(cells, suite_config)
+    marked = any(is_headline(agents) for agents in cells.values())
+    lines = [f"# Suite `{suite}`", ""]
+    if config.get("description"):
+        lines += [str(config["description"]).split(". ")[0].rstrip(".") + ".", ""]
+    lines += [("Headline cells: each agent runs one recipe on every task." if marked else
+               "No cell is marked headline: per env, its cell with the most agents.") +
+              (f" Budget: {config['budget_cut']}" if config.get("budget_cut") else ""),
+              "", "Mean final p̂ over seeds, [95% CI] with seeds as runs; *thesis* rows: the reported mean.", ""]
+    head = "| agent | " + " | ".join(cells) + " |"
+    lines += [head, _sep(head)]
+    agents = sorted({a for agents in cells.values() for a in agents},
+                    key=lambda a: (a != "expert", a in REFERENCE_AGENTS, a))
+    for agent in agents:
+        lines.append(f"| {agent} | " + " | ".join(
+            _headline_value(cells[label][agent]) if agent in cells[label] else "—" for label in cells) + " |")
+        if any(agent in refs[label] for label in cells):
+            lines.append(f"| *thesis: {agent}* | " + " | ".join(
+                f"{refs[label][agent]:.3f}" if agent in refs[label] else "—" for label in cells) + " |")
+    lines += ["", "Against the thesis (mean of seeds vs reported mean):"] + verdicts(cells, suite_config)
+    lines += ["", f"Every cell, per-seed numbers, curves and notes: [{page}]({page}). Regenerate: `{command}`."]
+    return "\n".join(lines)
 
 
 def write_leaderboard(results_dir: Path, out_path: Path, *, command: str, suite: str | None = None,
                       plot_dir: Path | None = None, suite_config: dict[str, Any] | None = None,
                       progress: bool = False) -> Path:
-    """Regenerate ``out_path`` (atomically) from the results of ``suite`` (all suites if None).
+    """Regenerate the suite's section of ``out_path`` (its headline, :func:`render_headline`) and its
+    appendix page ``docs/results/<suite>.md`` beside it (every cell, :func:`render_markdown`) from the
+    results of ``suite`` (all suites if None). Files are written atomically.
 
     ``suite_config`` (the suite JSON) supplies reference rows and notes; when omitted the
     committed suite named ``suite`` is used if there is one.
@@ -369,16 +481,29 @@ def write_leaderboard(results_dir: Path, out_path: Path, *, command: str, suite:
         except (ValueError, OSError):
             suite_config = None
     out_path = Path(out_path)
+    name = suite or "all"
+    page = appendix_path(out_path, name)
     plot_dir = plot_dir or out_path.parent / "docs" / "leaderboard"
-    text = render_markdown(results, command=command, suite=suite, plot_dir=plot_dir, relative_to=out_path.parent,
+    text = render_markdown(results, command=command, suite=suite, plot_dir=plot_dir, relative_to=page.parent,
                            suite_config=suite_config, progress=progress)
+    atomic_write_text(page, text.replace("# Leaderboard", f"# Suite `{name}`: every cell", 1) + "\n")
+    headline = render_headline(results, suite=name, suite_config=suite_config, command=command,
+                               page=os.path.relpath(page, out_path.parent))
     previous = out_path.read_text() if out_path.exists() else ""
-    return atomic_write_text(out_path, merge_suite_section(previous, suite or "all", text))
+    return atomic_write_text(out_path, merge_suite_section(previous, name, headline))
+
+
+def appendix_path(leaderboard: Path, suite: str) -> Path:
+    """Where the appendix page of ``suite`` goes: ``docs/results/<suite>.md`` beside the leaderboard."""
+    return Path(leaderboard).parent / "docs" / "results" / f"{safe_name(suite)}.md"
 
 
 _TITLE = "# Leaderboard"
-_INTRO = ("One section per benchmark suite; each is rewritten by its own run of the harness "
-          "(the command is at the top of the section), the others are kept.")
+_INTRO = ("One section per benchmark suite: its headline table (each agent with one recipe on every task, "
+          "the thesis's number under ours), a verdict per task and a link to the suite's appendix page with every "
+          "other cell, per-seed numbers, curves and notes. Each section is rewritten by its own run of the harness "
+          "(the command is at its end); the others are kept. A *run* is one training seed: its evaluation "
+          "episodes are averaged before any interval is computed.")
 
 
 def _block_markers(name: str) -> tuple[str, str]:
@@ -396,7 +521,7 @@ def _suite_blocks(document: str) -> dict[str, str]:
 
 def merge_suite_section(document: str, suite: str, rendered: str) -> str:
     """``document`` (a leaderboard file, possibly empty) with the section of ``suite`` replaced by
-    ``rendered`` (a :func:`render_markdown` result, headings moved one level down), other suites'
+    ``rendered`` (a :func:`render_headline` result, headings moved one level down), other suites'
     sections kept in their order and a new suite appended."""
     lines = rendered.splitlines()
     if lines and lines[0] == _TITLE:

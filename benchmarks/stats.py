@@ -4,7 +4,8 @@
   normalised performance p̂(H) over evaluation episodes × seeds (plain numpy).
 * Interval estimates from ``rliable``: interquartile mean (IQM) and mean with
   stratified-bootstrap 95% confidence intervals, performance profiles and the probability of
-  improvement. Score matrices follow rliable's convention: shape ``(runs, tasks)``.
+  improvement. Score matrices follow rliable's convention: shape ``(runs, tasks)``, and a run is
+  one training seed (its evaluation episodes averaged), never one episode.
 
 Bootstraps use a fixed seed, so a leaderboard regenerated from the same results is identical.
 rliable's stratified bootstrap draws its resampling indices from NumPy's global generator (the
@@ -17,7 +18,7 @@ from __future__ import annotations
 import warnings
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass
-from typing import Callable, Iterator, Mapping
+from typing import Any, Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -106,40 +107,48 @@ def performance_profiles(score_dict: Mapping[str, np.ndarray], taus: np.ndarray
 
 @dataclass
 class Summary:
-    """Summary of final normalised performances p̂(H) over eval episodes × seeds."""
+    """Final normalised performances p̂(H) of one agent on one env: the thesis's percentiles over
+    every evaluation episode of every seed, and interval estimates with **seeds as runs** (each
+    seed's episodes averaged first, as rliable recommends: episodes of one seed are not independent
+    runs of the training)."""
 
-    n: int
+    n: int  #: evaluation episodes in all
+    seeds: int
     p25: float
     mean: float
     std: float
     median: float
     p75: float
-    iqm: float
+    seed_means: list[float]  #: mean p̂ of each seed's episodes, in seed order
+    iqm: float  #: IQM of the per-seed means
     iqm_ci_low: float
     iqm_ci_high: float
-    mean_ci_low: float
+    mean_ci_low: float  #: CI of the mean of the per-seed means (the point estimate is ``mean``)
     mean_ci_high: float
 
-    def as_dict(self) -> dict[str, float]:
+    def as_dict(self) -> dict[str, Any]:
         return asdict(self)
 
 
-def summarize(values: np.ndarray) -> Summary:
-    """Thesis percentiles (numpy) and IQM / mean with bootstrap CIs (rliable) of ``values``.
-
-    The values (episodes × seeds of one agent on one env) are treated as runs of one task.
-    """
-    x = np.asarray(values, dtype=np.float64).ravel()
-    if x.size == 0:
-        raise ValueError("cannot summarise an empty set of results")
-    est = iqm_and_mean({"x": x})["x"]
+def summarize(per_seed: Sequence[Sequence[float]]) -> Summary:
+    """Thesis percentiles (numpy, over all episodes) and IQM / mean with bootstrap CIs (rliable,
+    seeds as runs) of ``per_seed``: one sequence of episode scores per seed. With one seed the
+    interval has zero width (one run says nothing about the spread between runs)."""
+    seeds = [np.asarray(v, dtype=np.float64).ravel() for v in per_seed]
+    if not seeds or any(v.size == 0 for v in seeds):
+        raise ValueError("cannot summarise an empty set of results (every seed needs episodes)")
+    x = np.concatenate(seeds)
+    means = np.array([v.mean() for v in seeds])
+    est = iqm_and_mean({"x": means})["x"]
     return Summary(
         n=int(x.size),
+        seeds=len(seeds),
         p25=float(np.percentile(x, 25)),
         mean=float(np.mean(x)),
         std=float(np.std(x)),
         median=float(np.median(x)),
         p75=float(np.percentile(x, 75)),
+        seed_means=[float(m) for m in means],
         iqm=est["iqm"],
         iqm_ci_low=est["iqm_ci_low"],
         iqm_ci_high=est["iqm_ci_high"],

@@ -58,6 +58,7 @@ _CELL = {
         "agents": _AGENTS,
         "label": {"type": "string", "message": "must be a string"},
         "coverage_steps": _int(1, "env steps whose states the coverage picture records"),
+        "headline": {"type": "boolean", "message": "must be true or false (a cell of the suite's headline table)"},
         **_SETTINGS,
     },
 }
@@ -72,6 +73,7 @@ SUITE_SCHEMA: dict[str, Any] = {
     "properties": {
         "name": {"type": "string", "minLength": 1, "message": "must be a non-empty string"},
         "description": {"type": "string", "message": "must be a string"},
+        "budget_cut": {"type": "string", "message": "must be a string (one sentence: the budget against the thesis's)"},
         "cells": {"type": "array", "minItems": 1, "items": _CELL, "message": "must be a non-empty list of cells"},
         "reference": {"type": "object", "message": "must map env ids to {source, rows}",
                       "additionalProperties": {"type": "object", "message": "must be {source, rows}"}},

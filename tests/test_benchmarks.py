@@ -52,6 +52,21 @@ def test_stats_match_numpy_and_rliable():
     assert p == 1.0 and lo == hi == 1.0
 
 
+def test_stats_cell_intervals_treat_seeds_as_runs():
+    """Three seeds of 20 episodes whose means differ widely: the interval spans the seeds' spread
+    (episodes of one seed are not independent runs), the percentiles still cover every episode."""
+    rng = np.random.default_rng(0)
+    seeds = [m + rng.normal(0, 0.01, 20) for m in (0.515, 0.896, 0.942)]
+    s = summarize(seeds)
+    assert s.seeds == 3 and s.n == 60
+    assert s.seed_means == pytest.approx([float(np.mean(v)) for v in seeds])
+    assert s.mean_ci_low < 0.55 and s.mean_ci_high > 0.9
+    episodes = summarize([[v] for v in np.concatenate(seeds)])  # the old, wrong unit: 60 "runs"
+    assert episodes.mean_ci_high - episodes.mean_ci_low < 0.5 * (s.mean_ci_high - s.mean_ci_low)
+    with pytest.raises(ValueError, match="empty"):
+        summarize([[0.5], []])
+
+
 def test_stats_bootstraps_are_reproducible_and_leave_the_global_rng_alone():
     """Two computations from the same scores give the same intervals (rliable draws its resampling
     indices from NumPy's global generator), and the caller's global random stream is untouched."""
@@ -88,7 +103,10 @@ def test_tiny_suite_end_to_end_and_resume(tmp_path):
     assert bench.main(args) == 0
     files = sorted(out.rglob("*.json"))
     assert len(files) == 2
-    text = board.read_text()
+    headline = board.read_text()
+    pages = sorted((tmp_path / "docs" / "results").glob("*.md"))
+    assert len(pages) == 1 and f"({pages[0].relative_to(tmp_path)})" in headline  # linked from the headline
+    text = pages[0].read_text()  # every cell in detail
     for f in files:
         r = json.loads(f.read_text())
         finals = np.asarray(r["final_normalized_performance"])
@@ -96,6 +114,7 @@ def test_tiny_suite_end_to_end_and_resume(tmp_path):
         row = next(l for l in text.splitlines() if l.startswith(f"| {r['cell']['agent']} |"))
         assert f"{finals.mean():.3f} ± {finals.std():.3f}" in row
         assert f"{np.median(finals):.3f}" in row
+        assert any(l.startswith(f"| {r['cell']['agent']} | {finals.mean():.3f}") for l in headline.splitlines())
     rows = {l.split("|")[1].strip(): l for l in text.splitlines() if l.startswith("| ")}
     mean = lambda row: float(row.split("|")[5].split("±")[0])
     assert mean(rows[f"{__name__}:third_party_factory"]) > mean(rows["random"]) + 0.5
@@ -162,7 +181,7 @@ def test_demo_cache_under_out_rebuilt_when_broken_and_budgets_recorded(tmp_path,
     n = bc["demo_transitions"]
     assert n == 2 * 3  # two pick_place episodes of horizon 3
     assert bc["env_steps"] == 0 and bc["gradient_updates"] == 3 * int(np.ceil(n / 4))
-    lines = (tmp_path / "lb.md").read_text().splitlines()
+    lines = (tmp_path / "docs" / "results" / "bcs.md").read_text().splitlines()  # the appendix: every column
     head = [c.strip() for c in next(l for l in lines if l.startswith("| agent |")).split("|")]
     cols = [c.strip() for c in next(l for l in lines if l.startswith("| bc |")).split("|")]
     budget = [cols[head.index(k)] for k in ("env steps", "gradient updates", "demo transitions")]
@@ -276,7 +295,11 @@ def test_reference_rows_and_notes(tmp_path):
     path.write_text(json.dumps(suite))
     assert bench.main(["--suite", str(path), "--out", str(tmp_path / "res"), "--leaderboard",
                        str(tmp_path / "lb.md"), "--no-progress"]) == 0
-    lines = (tmp_path / "lb.md").read_text().splitlines()
+    headline = (tmp_path / "lb.md").read_text().splitlines()
+    i = next(k for k, l in enumerate(headline) if l.startswith("| random |"))
+    assert headline[i + 1].startswith("| *thesis: random* | 0.111 |")  # the thesis under ours in the headline
+    assert any(l.startswith("- toy_env:lfd_test/PointReach-v0:") for l in headline)  # one verdict line per task
+    lines = (tmp_path / "docs" / "results" / "tiny.md").read_text().splitlines()
     i = next(k for k, l in enumerate(lines) if l.startswith("| random |"))
     assert lines[i + 1].startswith("| *thesis: random* |") and "0.111 ± 0.022" in lines[i + 1]
     assert "| 0.050 |" in lines[i + 1] and "| 0.200 |" in lines[i + 1]
