@@ -211,12 +211,13 @@ def _lfd_demo_agent(class_name: str) -> AgentFactory:
     def factory(env: gym.Env, seed: int = 0, demo_episodes: int = 20, demo_cache: str | Path | None = None,
                 demo_policy: str = "expert", demo_policy_kwargs: dict[str, Any] | None = None,
                 select_episodes: int = 0, select_first_variant: int = 400, **kwargs: Any):
-        from benchmarks.demo_cache import CACHE_DIRNAME, demonstrations_for
+        from benchmarks.demo_cache import demonstrations_for
+        from benchmarks.recipes import default_demo_cache
 
         if int(select_episodes) < 0:
             raise ValueError(f"select_episodes must be >= 0 (0: no checkpoint selection), got {select_episodes!r}")
         cls = getattr(importlib.import_module("lfd_agents"), class_name)
-        cache = Path(demo_cache) if demo_cache is not None else DEFAULT_RESULTS / CACHE_DIRNAME
+        cache = Path(demo_cache) if demo_cache is not None else default_demo_cache()
         demos = demonstrations_for(env, int(demo_episodes), cache, policy=demo_policy,
                                    policy_kwargs=demo_policy_kwargs)
         kwargs.setdefault("device", "cpu")

@@ -127,6 +127,7 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
                  seeds: list[int] | None = None, budget: int | None = None, device: str | None = None,
                  extra_agents: list[str] | None = None) -> list[Cell]:
     """The grid of cells of ``suite`` after command-line filters and overrides."""
+    from benchmarks import recipes
     from benchmarks.agents import REFERENCE_AGENTS, resolve_agent
     from benchmarks.suite_schema import check_env_kwargs
 
@@ -165,7 +166,10 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
         for name in cell_agents:
             resolve_agent(name)  # fail early with the list of valid agents
         for agent, kwargs in cell_agents.items():
-            kwargs = dict(kwargs)
+            kwargs, recipe = recipes.resolve(agent, kwargs)
+            tags = {k: spec[k] for k in ("label", "notes", "coverage_steps", "headline") if k in spec}
+            if recipe:
+                tags["recipe"] = recipe
             if device and agent not in REFERENCE_AGENTS:
                 kwargs["device"] = device
             for seed in seeds if seeds is not None else spec.get("seeds", suite.get("seeds", [0])):
@@ -175,7 +179,7 @@ def expand_cells(suite: dict[str, Any], *, agents: list[str] | None = None, envs
                     budget=int(budget if budget is not None else spec.get("budget", suite.get("budget", 1000))),
                     eval_episodes=int(spec.get("eval_episodes", suite.get("eval_episodes", 10))),
                     curve_points=int(spec.get("curve_points", suite.get("curve_points", 4))),
-                    tags={k: spec[k] for k in ("label", "notes", "coverage_steps", "headline") if k in spec},
+                    tags=dict(tags),
                     cpus=int(spec.get("cpus", suite.get("cpus", 1))),
                     deterministic=bool(spec.get("deterministic", suite.get("deterministic", True))),
                     checkpoint_steps=spec.get("checkpoint_steps", suite.get("checkpoint_steps")),

@@ -170,12 +170,14 @@ def _function_kwargs(fn: Callable[..., Any]) -> set[str] | None:
 def check_agent_kwargs(suite: dict[str, Any], path: Path | str = "suite") -> None:
     """``ValueError`` naming the file, cell, agent and keys for an unknown agent or an agent
     kwarg its factory does not take (where the factory's signature tells)."""
+    from benchmarks import recipes
     from benchmarks.agents import resolve_agent
 
     for i, spec in enumerate(suite["cells"]):
         for name, kwargs in spec.get("agents", {}).items():
             try:
                 factory = resolve_agent(name)
+                kwargs, _ = recipes.resolve(name, kwargs)
             except ValueError as exc:
                 raise ValueError(f"{path}: cells[{i}].agents: {exc}") from None
             valid = accepted_kwargs(factory)
