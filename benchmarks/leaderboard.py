@@ -72,6 +72,19 @@ def cell_notes(suite_config: dict[str, Any] | None, env_label: str,
     return sorted({r["cell"].get("tags", {}).get("notes") for runs in agents.values() for r in runs} - {None})
 
 
+def mark_headline(results: list[dict[str, Any]], suite_config: dict[str, Any] | None) -> None:
+    """Set each result's ``headline`` tag from the suite config where the config lists its cell (the
+    config is documentation: marking a cell headline needs no re-run); other results keep theirs."""
+    marked: dict[str, bool] = {}
+    for spec in (suite_config or {}).get("cells", []):
+        cell = {"env_id": str(spec.get("env")), "tags": {"label": spec["label"]} if "label" in spec else {}}
+        marked[_env_label(cell)] = bool(spec.get("headline", False))
+    for r in results:
+        label = _env_label(r["cell"])
+        if label in marked:
+            r["cell"].setdefault("tags", {})["headline"] = marked[label]
+
+
 def group_by_env(results: list[dict[str, Any]]) -> dict[str, dict[str, list[dict[str, Any]]]]:
     """``{env label: {agent: [results over seeds]}}``."""
     table: dict[str, dict[str, list]] = defaultdict(lambda: defaultdict(list))
@@ -480,6 +493,7 @@ def write_leaderboard(results_dir: Path, out_path: Path, *, command: str, suite:
             suite_config = load_suite(suite)
         except (ValueError, OSError):
             suite_config = None
+    mark_headline(results, suite_config)
     out_path = Path(out_path)
     name = suite or "all"
     page = appendix_path(out_path, name)
