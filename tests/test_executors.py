@@ -77,6 +77,58 @@ def test_ray_executor_runs_a_tiny_suite(tmp_path):
         ray.shutdown()
 
 
+def sac_dies_once_after_a_checkpoint(env, seed, marker, **kwargs):
+    """SB3 SAC whose process dies (once, ``marker`` records it) when it goes on from a checkpoint."""
+    import functools
+
+    from benchmarks.agents import resolve_agent
+
+    model = resolve_agent("sac")(env, seed, **kwargs)
+    learn = model.learn
+
+    @functools.wraps(learn)
+    def dying_learn(*args, **kw):
+        if model.num_timesteps > 0 and not Path(marker).exists():
+            Path(marker).write_text("died once")
+            os._exit(3)
+        return learn(*args, **kw)
+
+    model.learn = dying_learn
+    return model
+
+
+def test_ray_task_killed_after_a_checkpoint_resumes_to_the_uninterrupted_result(tmp_path):
+    import ray
+
+    def cells(marker):
+        suite = {"name": "exec", "seeds": [1], "eval_episodes": 3, "budget": 60, "curve_points": 2,
+                 "checkpoint_steps": 20,
+                 "cells": [{"env": "toy_env:lfd_test/PointReach-v0", "agents": {
+                     f"{__name__}:sac_dies_once_after_a_checkpoint": {
+                         "marker": str(marker), "learning_starts": 10, "batch_size": 16,
+                         "policy_kwargs": {"net_arch": [16, 16]}}}}]}
+        return bench.expand_cells(suite)
+
+    (tmp_path / "never").write_text("the plain run does not die")
+    plain = tmp_path / "plain"
+    bench.run_grid(cells(tmp_path / "never"), plain, progress=False)
+    ray.init(num_cpus=1, include_dashboard=False, log_to_driver=False,
+             runtime_env={"env_vars": {"PYTHONPATH": os.pathsep.join([str(Path(__file__).parent),
+                                                                       os.environ.get("PYTHONPATH", "")])}})
+    try:
+        killed = tmp_path / "killed"
+        bench.run_grid(cells(tmp_path / "marker"), killed, progress=False, executor="ray")
+    finally:
+        ray.shutdown()
+    assert (tmp_path / "marker").exists()  # the task died after its first checkpoint; Ray ran it again
+    (a,), (b,) = result_files(plain), result_files(killed)
+    resumed, expected = read_result(b), read_result(a)
+    assert resumed["resumed_at_steps"] == 20 and "resumed_at_steps" not in expected
+    for key in ("final_normalized_performance", "learning_curve", "gradient_updates", "env_steps"):
+        assert resumed[key] == expected[key], key
+    assert not (killed / "_checkpoints").exists()
+
+
 def test_serial_cells_run_on_their_own_core_count(monkeypatch):
     """Each serial cell runs with as many torch threads as it asks cores for (default 1; more
     threads than cores on a shared machine make small networks many times slower) and with float
