@@ -55,7 +55,7 @@ def _checkpoint_folder(checkpoints: str | Path | None, cell: Any) -> Path | None
 
 def _execute(cell: Any, demo_cache: str | None, threads: int | None, checkpoints: str | None = None) -> dict[str, Any]:
     """Worker entry point: run one cell (module-level so processes and Ray can import it)."""
-    from benchmarks.run import run_cell
+    from benchmarks.cell import run_cell
 
     import torch
 
@@ -95,7 +95,7 @@ def run_serial(cells: list[Any], done: Done, *, demo_cache: Path | None, progres
     import torch
     from tqdm import tqdm
 
-    from benchmarks.run import run_cell
+    from benchmarks.cell import run_cell
 
     # Weights and Adam moments that decay into float subnormals make every CPU matmul several
     # times slower as training goes on (DMfD: 40 -> 11 updates/s after ~6k updates); flush them.

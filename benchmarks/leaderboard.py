@@ -23,7 +23,7 @@ import numpy as np
 from benchmarks import plots
 from benchmarks.coverage import coverage_markdown, coverage_of
 from benchmarks.agents import REFERENCE_AGENTS as _REFERENCE_AGENTS
-from benchmarks.run import REPORTED_METRICS
+from benchmarks.cell import REPORTED_METRICS
 from benchmarks.stats import iqm_and_mean, performance_profiles, probability_of_improvement, summarize
 from benchmarks.storage import CorruptResult, atomic_write_text, read_result, result_files, safe_name
 
@@ -122,7 +122,7 @@ def _budget(runs: list[dict[str, Any]], key: str) -> str:
 
 
 def reported_metrics(agents: dict[str, list[dict[str, Any]]]) -> list[str]:
-    """The :data:`~benchmarks.run.REPORTED_METRICS` that some cell of an env recorded (in order)."""
+    """The :data:`~benchmarks.cell.REPORTED_METRICS` that some cell of an env recorded (in order)."""
     have = {k for runs in agents.values() for r in runs for k in r.get("final_metrics", {})}
     return [k for k in REPORTED_METRICS if k in have]
 

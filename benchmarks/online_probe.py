@@ -112,7 +112,7 @@ def probe_cell(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, age
     import lfd_envs  # noqa: F401
     from benchmarks.agents import DEFAULT_RESULTS, resolve_agent
     from benchmarks.demo_cache import CACHE_DIRNAME
-    from benchmarks.run import evaluate
+    from benchmarks.cell import evaluate
 
     if online_steps < 1 or eval_every < 1 or eval_episodes < 1:
         raise ValueError("online_steps, eval_every and eval_episodes must be >= 1")

@@ -455,6 +455,8 @@ def test_cells_evaluate_with_sampled_actions_where_deterministic_is_false(tmp_pa
     """``"deterministic": false`` reaches the agent's predict in the evaluation; a non-bool is refused."""
     import gymnasium as gym
 
+    from benchmarks.cell import evaluate_episodes
+
     class Recorder:
         def __init__(self, env):
             self.space, self.flags = env.action_space, set()
@@ -466,7 +468,7 @@ def test_cells_evaluate_with_sampled_actions_where_deterministic_is_false(tmp_pa
     env = gym.make("Push2DObstacle-v0")
     for deterministic in (True, False):
         agent = Recorder(env)
-        bench.evaluate_episodes(agent, env, 1, seed=0, deterministic=deterministic)
+        evaluate_episodes(agent, env, 1, seed=0, deterministic=deterministic)
         assert agent.flags == {deterministic}
     suite = {"name": "t", "cells": [{"env": "Push2DObstacle-v0", "deterministic": False, "agents": {"zero": {}}}]}
     bench.check_suite(suite)

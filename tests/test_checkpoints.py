@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 import torch
 
-from benchmarks import run as bench
+from benchmarks import cell as bench
 from benchmarks.checkpoints import CHECKPOINT_DIRNAME, CheckpointStore
 
 ROOT = Path(__file__).resolve().parent.parent

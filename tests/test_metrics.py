@@ -180,7 +180,7 @@ def test_random_agent_in_pick_place_picks_particles():
 
 # ---------------------------------------------------------------------- harness and leaderboard
 def _result(agent, finals, metrics=None, seed=0):
-    from benchmarks.run import environment_info
+    from benchmarks.cell import environment_info
 
     r = {"cell": {"suite": "m", "env_id": "ClothFoldDiagonalPinned-v0", "agent": agent, "seed": seed, "tags": {}},
          "final_normalized_performance": finals, "learning_curve": [], "trained_steps": 0,

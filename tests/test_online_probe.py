@@ -57,7 +57,7 @@ def test_held_rate_counts_episodes_in_which_a_picker_held_the_cloth():
         def predict(self, obs, deterministic=True):
             return np.array([0.0, 0.0, 0.3, 1.0], np.float32), None
 
-    from benchmarks.run import evaluate
+    from benchmarks.cell import evaluate
 
     evaluate(Hover(), env, 2, seed=0)
     assert env.rate() == {"held_rate": 0.0} and env.rate() == {}

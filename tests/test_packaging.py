@@ -17,7 +17,7 @@ PYPROJECT = tomllib.loads((Path(__file__).resolve().parent.parent / "pyproject.t
 def test_distribution_is_not_named_lfd():
     assert PYPROJECT["project"]["name"] == "lfd-suite"  # "lfd" on PyPI is an unrelated project
     assert md.version("lfd-suite") == PYPROJECT["project"]["version"]
-    from benchmarks.run import environment_info
+    from benchmarks.cell import environment_info
 
     assert environment_info()["versions"]["lfd-suite"] == PYPROJECT["project"]["version"]
 
