@@ -135,6 +135,7 @@ def test_serial_cells_run_on_their_own_core_count(monkeypatch):
     subnormals flushed to zero; both settings are restored afterwards."""
     import torch
 
+    from benchmarks import cell as cell_module
     from benchmarks import executors
 
     seen = []
@@ -143,7 +144,7 @@ def test_serial_cells_run_on_their_own_core_count(monkeypatch):
         seen.append((torch.get_num_threads(), executors.flush_denormals_enabled()))
         return {}
 
-    monkeypatch.setattr(bench, "run_cell", fake_run_cell)
+    monkeypatch.setattr(cell_module, "run_cell", fake_run_cell)
     cells = [bench.Cell(suite="t", env_id="ThreeBoxes-v0", env_kwargs={}, agent="zero", agent_kwargs={}, seed=0,
                         budget=1, eval_episodes=1, cpus=c) for c in (1, 2)]
     before = torch.get_num_threads(), executors.flush_denormals_enabled()
