@@ -245,7 +245,7 @@ def test_corrupt_cell_json_is_named_and_rerun(tmp_path, capsys):
 def test_unwritable_out_refused_before_training(tmp_path, capsys, monkeypatch):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
-    monkeypatch.setattr(bench, "run_cell", lambda *a, **k: pytest.fail("trained despite an unwritable --out"))
+    monkeypatch.setattr("benchmarks.cell.run_cell", lambda *a, **k: pytest.fail("trained despite an unwritable --out"))
     assert bench.main(["--suite", str(_suite(tmp_path)), "--out", str(blocker / "res"), "--no-progress",
                        "--leaderboard", str(tmp_path / "lb.md")]) == 2
     assert f"cannot write to {blocker / 'res'}" in capsys.readouterr().err
@@ -420,7 +420,7 @@ def test_report_rewrites_the_leaderboard_from_finished_cells_and_trains_nothing(
     assert "error" in capsys.readouterr().err and not board.exists()
     assert bench.main(args + ["--agents", "random"]) == 0  # one of the two agents
     board.write_text("stale")
-    monkeypatch.setattr(bench, "run_cell", lambda *a, **k: pytest.fail("--report trained a cell"))
+    monkeypatch.setattr("benchmarks.cell.run_cell", lambda *a, **k: pytest.fail("--report trained a cell"))
     assert bench.main(args + ["--report"]) == 0
     text = board.read_text()
     assert "| random |" in text and "third_party_factory" not in text
