@@ -13,27 +13,62 @@ per decision; one that turns to targets it cannot reach lasts one.
 Usage::
 
     python -m benchmarks.mopa_modes [--env Push2DObstacle-v0] [--steps 20000] [--window 5000]
-        [--learning-starts 100] [--seed 0] [--update-per-stored]
+        [--learning-starts 100] [--seed 0] [--update-per-stored] [--schedule sb3] [--planner suite]
 
-``--update-per-stored`` trains with MoPA-RL's schedule (one gradient step per stored transition,
-reused path segments included) instead of SB3's one per decision.
+``--update-per-stored`` trains with MoPA-RL's update schedule (one gradient step per stored
+transition, reused path segments included) instead of SB3's one per decision; ``--schedule
+mopa-rl`` with all of ``MOPA_RL_SCHEDULE`` (warm-up of 10k stored transitions, those updates,
+timeouts stored as done: the harness's ``mopa_sac``). ``--planner mopa-rl`` plans with MoPA-RL's
+settings (below) instead of the task's ``MOPA_DEFAULTS``.
+
+``--speed`` measures instead how fast MoPA-SAC learns with two planner settings, in alternating
+rounds of the same run (each round a fresh agent with the same seed): ``mopa-rl`` (MoPA-RL's
+1 s time limit per OMPL query and its 0.02 rad pull-back, every validity check copying the live
+state; the planner before the check budget) and ``suite`` (the task's ``MOPA_DEFAULTS``: a
+budget of validity checks per search, one scene snapshot per query). It prints the low-level
+env steps per second of ``learn``, the share of wall time spent planning and the share of
+failed decisions, median over ``--rounds``; ``--schedule sb3`` (SB3's warm-up of 100 decisions
+and one update per decision, the settings of the first ``repro-mopa`` cells) or ``mopa-rl``
+(``MOPA_RL_SCHEDULE``)::
+
+    python -m benchmarks.mopa_modes --speed [--steps 5000] [--rounds 2] [--schedule sb3]
 """
 
 from __future__ import annotations
 
 import argparse
 import collections
+import os
 import time
 from typing import Any
 
 import numpy as np
 
 
+#: wrapper settings of ``--planner mopa-rl`` (the suite's: the task's ``MOPA_DEFAULTS``)
+MOPA_RL_PLANNER = {"time_limit": 1.0, "invalid_target_step": 0.02,
+                   "planner_kwargs": {"max_checks": None, "snapshot_scene": False}}
+#: agent settings of ``--schedule sb3`` (``mopa-rl``: ``MOPA_RL_SCHEDULE``, the harness's default)
+SB3_SCHEDULE = {"warmup_stored": 0, "update_per_stored": False, "timeouts_as_done": False, "learning_starts": 100}
+
+
+def _settings(planner: str, schedule: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """(wrapper kwargs, agent kwargs) of MoPAAgent for a planner and a schedule name."""
+    if planner not in ("mopa-rl", "suite") or schedule not in ("sb3", "mopa-rl"):
+        raise ValueError(f"planner must be 'mopa-rl' or 'suite' and schedule 'sb3' or 'mopa-rl', "
+                         f"got {planner!r}, {schedule!r}")
+    wrapper = {**MOPA_RL_PLANNER, "planner_kwargs": dict(MOPA_RL_PLANNER["planner_kwargs"])} if planner == "mopa-rl" \
+        else {}
+    return wrapper, dict(SB3_SCHEDULE) if schedule == "sb3" else {}
+
+
 def mode_rows(env_id: str = "Push2DObstacle-v0", steps: int = 20_000, window: int = 5000, learning_starts: int = 100,
-              seed: int = 0, update_per_stored: bool = False) -> tuple[list[dict[str, Any]], float]:
+              seed: int = 0, update_per_stored: bool = False, planner: str = "suite", schedule: str = "sb3"
+              ) -> tuple[list[dict[str, Any]], float]:
     """Per-window rows (decisions, share of each mode, low-level steps per decision, rewarded
     decisions, gradient updates so far and, on Push2D, the closest fingertip-box distance) of one
-    MoPA-SAC training run, and the final entropy coefficient."""
+    MoPA-SAC training run, and the final entropy coefficient. With ``schedule="sb3"``,
+    ``learning_starts`` and ``update_per_stored`` set the warm-up and updates."""
     import gymnasium as gym
     from stable_baselines3.common.callbacks import BaseCallback
 
@@ -41,8 +76,10 @@ def mode_rows(env_id: str = "Push2DObstacle-v0", steps: int = 20_000, window: in
     from lfd_agents.mopa import MoPAAgent
     from lfd_agents.mopa.wrapper import MOPA_MODES
 
-    agent = MoPAAgent(gym.make(env_id), seed=seed, learning_starts=learning_starts,
-                      update_per_stored=update_per_stored)
+    wrapper_kwargs, agent_kwargs = _settings(planner, schedule)
+    if schedule == "sb3":
+        agent_kwargs.update(learning_starts=learning_starts, update_per_stored=update_per_stored)
+    agent = MoPAAgent(gym.make(env_id), seed=seed, wrapper_kwargs=wrapper_kwargs, **agent_kwargs)
     counts: dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
     task = agent.train_env.unwrapped
     push2d = hasattr(task, "fingertip_xy") and hasattr(task, "box_xy")  # then: how close the arm came
@@ -76,24 +113,84 @@ def mode_rows(env_id: str = "Push2DObstacle-v0", steps: int = 20_000, window: in
     return rows, ent
 
 
+def _speed_run(env_id: str, steps: int, seed: int, wrapper_kwargs: dict[str, Any], agent_kwargs: dict[str, Any]
+               ) -> dict[str, float]:
+    import gymnasium as gym
+
+    import lfd_envs  # noqa: F401  (registers the ids)
+    from lfd_agents.mopa import MoPAAgent
+
+    agent = MoPAAgent(gym.make(env_id), seed=seed, wrapper_kwargs=wrapper_kwargs, **agent_kwargs)
+    t0 = time.perf_counter()
+    agent.learn(steps)
+    wall = time.perf_counter() - t0
+    wrapper = agent.train_env
+    decisions = max(sum(wrapper.stats.values()), 1)
+    failed = wrapper.stats["failed"] + wrapper.stats["invalid_target"]
+    return {"low_level_steps_per_s": wrapper.low_level_steps / wall,
+            "planning_share": wrapper.planner.stats["time"] / wall, "failed_share": failed / decisions,
+            "updates": agent.model._n_updates}
+
+
+def speed_rows(env_id: str = "Push2DObstacle-v0", steps: int = 5000, rounds: int = 2, seed: int = 0,
+               schedule: str = "sb3") -> list[dict[str, Any]]:
+    """Median learning speed of MoPA-SAC with MoPA-RL's and the suite's planner settings
+    (module docstring), measured in alternating rounds."""
+    runs: dict[str, list[dict[str, float]]] = {name: [] for name in ("mopa-rl", "suite")}
+    for _ in range(rounds):
+        for name in runs:
+            runs[name].append(_speed_run(env_id, steps, seed, *_settings(name, schedule)))
+    rows = []
+    for name, results in runs.items():
+        row = {"planner": name, "schedule": schedule}
+        for key in results[0]:
+            row[key] = round(float(np.median([r[key] for r in results])), 3 if "share" in key else 1)
+        rows.append(row)
+    base = rows[0]["low_level_steps_per_s"]
+    for row in rows:
+        row["vs_mopa_rl"] = round(row["low_level_steps_per_s"] / base, 2)
+    return rows
+
+
+def _print(rows: list[dict[str, Any]]) -> None:
+    keys = list(rows[0]) if rows else []
+    print("| " + " | ".join(keys) + " |\n|" + "---|" * len(keys))
+    for r in rows:
+        print("| " + " | ".join(str(r[k]) for k in keys) + " |")
+
+
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(prog="python -m benchmarks.mopa_modes", description=__doc__.split("\n")[0])
     p.add_argument("--env", default="Push2DObstacle-v0")
-    p.add_argument("--steps", type=int, default=20_000, help="low-level env steps of training")
+    p.add_argument("--steps", type=int, default=None, help="low-level env steps of training (20000; --speed: 5000)")
     p.add_argument("--window", type=int, default=5000, help="low-level steps per row")
     p.add_argument("--learning-starts", type=int, default=100, help="uniform-random warm-up, in decisions")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--update-per-stored", action="store_true", help="MoPA-RL's update schedule")
+    p.add_argument("--speed", action="store_true", help="learning speed with MoPA-RL's and the suite's planner")
+    p.add_argument("--rounds", type=int, default=2, help="--speed: alternating rounds per setting")
+    p.add_argument("--schedule", choices=("sb3", "mopa-rl"), default="sb3",
+                   help="sb3: --learning-starts and --update-per-stored; mopa-rl: MoPA-RL's warm-up, updates, timeouts")
+    p.add_argument("--planner", choices=("suite", "mopa-rl"), default="suite",
+                   help="suite: the task's MOPA_DEFAULTS; mopa-rl: 1 s per OMPL query, no check budget")
     args = p.parse_args(argv)
     t0 = time.perf_counter()
-    rows, ent = mode_rows(args.env, args.steps, args.window, args.learning_starts, args.seed, args.update_per_stored)
-    keys = list(rows[0]) if rows else []
+    if args.speed:
+        steps = args.steps or 5000
+        rows = speed_rows(args.env, steps, args.rounds, args.seed, args.schedule)
+        print(f"MoPA-SAC on {args.env}, seed {args.seed}, {steps} low-level steps per run, {args.rounds} rounds, "
+              f"schedule {args.schedule}, load average {os.getloadavg()[0]:.2f}\n")
+        _print(rows)
+        print(f"\n{time.perf_counter() - t0:.0f} s")
+        return
+    args.steps = args.steps or 20_000
+    rows, ent = mode_rows(args.env, args.steps, args.window, args.learning_starts, args.seed, args.update_per_stored,
+                          args.planner, args.schedule)
     schedule = "one update per stored transition" if args.update_per_stored else "one update per decision"
-    print(f"MoPA-SAC on {args.env}, seed {args.seed}, warm-up {args.learning_starts} decisions, {args.steps} steps, "
-          f"{schedule}\n")
-    print("| " + " | ".join(keys) + " |\n|" + "---|" * len(keys))
-    for r in rows:
-        print("| " + " | ".join(str(r[k]) for k in keys) + " |")
+    schedule = (f"warm-up {args.learning_starts} decisions, {schedule}" if args.schedule == "sb3"
+                else "MoPA-RL's schedule")
+    print(f"MoPA-SAC on {args.env}, seed {args.seed}, {schedule}, {args.planner} planner, {args.steps} steps\n")
+    _print(rows)
     print(f"\nentropy coefficient at the end: {ent:.4f}; {time.perf_counter() - t0:.0f} s")
 
 

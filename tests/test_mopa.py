@@ -119,6 +119,31 @@ def test_planner_straight_line_and_failures():
         OMPLPlanner(env.is_valid, env.joint_limits, dq_step=0.05, algorithm="prm")
 
 
+def test_check_budget_stops_a_search_that_cannot_succeed():
+    """A goal cut off from the start (closed wall): the search stops after ``max_checks``
+    validity checks, well inside the time limit, and a seeded planner fails the same way twice;
+    a reachable goal is still found with the budget."""
+    closed = lambda q: abs(q[0]) >= 0.1  # noqa: E731 - no gap: the right half is unreachable
+    results = []
+    for _ in range(2):
+        planner = OMPLPlanner(closed, [[-1, 1], [-1, 1]], dq_step=0.05, range=0.2, time_limit=5.0, max_checks=400,
+                              seed=3)
+        res = planner.plan([-0.5, 0.5], [0.5, 0.5])
+        assert res.status == "failed" and res.planning_time < 2.0
+        assert 400 <= res.extra["checks"] < 400 + 50  # stops at the budget (one extension past it at most)
+        results.append(res.extra["checks"])
+        planner.close()
+    assert results[0] == results[1]
+    env = WallPointEnv()
+    planner = OMPLPlanner(env.is_valid, env.joint_limits, dq_step=env.dq_step, range=0.2, max_checks=20_000, seed=0)
+    res = planner.plan([-0.5, 0.5], [0.5, 0.5])
+    assert res.status == "planner" and 0 < res.extra["checks"] < 20_000
+    for bad in (0, -5, 1.5, True):
+        with pytest.raises(ValueError, match="max_checks"):
+            OMPLPlanner(env.is_valid, env.joint_limits, dq_step=0.05, max_checks=bad)
+    planner.close()
+
+
 def test_no_nanobind_warnings_at_exit():
     code = textwrap.dedent("""
         import numpy as np
@@ -301,6 +326,48 @@ def test_update_per_stored_transition_counts_reuse_like_mopa_rl(one_torch_thread
             assert np.all(np.diff(updates) == 1)
 
 
+def test_timeouts_stored_as_done_like_mopa_rl(one_torch_thread):
+    """``timeouts_as_done``: a transition ending at the horizon has no bootstrap (MoPA-RL), also
+    the reused sub-segments ending there; SB3's default bootstraps it."""
+    for as_done in (False, True):
+        env = MoPAWrapper(WallPointEnv(horizon=25), dq_mp=1.0, omega=0.5, range=0.2, time_limit=0.2)
+        model = MoPASAC("MlpPolicy", env, reuse=5, learning_starts=1000, batch_size=16, seed=0, device="cpu",
+                        policy_kwargs={"net_arch": [16]}, timeouts_as_done=as_done)
+        model.learn(40)
+        rb = model.replay_buffer
+        n = rb.pos
+        timeouts = rb.timeouts[:n, 0] if not as_done else rb.dones[:n, 0]
+        assert timeouts.sum() >= 1  # at least one episode reached the horizon
+        sampled = rb._get_samples(np.arange(n)).dones.numpy()[:, 0]
+        assert sampled.sum() == (rb.dones[:n, 0].sum() if as_done else 0)  # WallPointEnv never terminates
+    buf = _buffer(0.9, reuse=50)
+    amap = ActionMap(0.05, 1.0, 0.5)
+    qpos = np.array([[0.05 * i, 0.0] for i in range(7)])
+    traj = {"qpos": qpos, "observations": [np.full(4, i, np.float32) for i in range(7)], "rewards": np.ones(6),
+            "terminated": False, "truncated": True, "extra_action": np.zeros(0), "action_map": amap}
+    assert not any(done for *_, done, _ in buf.reuse_transitions(traj))
+    buf.handle_timeout_termination = False
+    out = buf.reuse_transitions(traj)
+    assert out and all(done == (int(nobs[0]) == 6) for _, nobs, _, _, done, _ in out)
+
+
+def test_warmup_counts_stored_transitions_like_mopa_rl(one_torch_thread):
+    """``warmup_stored``: uniformly random actions and no updates until that many transitions
+    (reused sub-segments included) are stored; updates start right after."""
+    env = MoPAWrapper(WallPointEnv(horizon=60), dq_mp=1.0, omega=0.5, range=0.2, time_limit=0.2)
+    model = _Recording("MlpPolicy", env, reuse=5, learning_starts=0, batch_size=16, seed=0, device="cpu",
+                       policy_kwargs={"net_arch": [16]}, warmup_stored=60, update_per_stored=True)
+    model.record = []
+    model.learn(60)
+    stored, updates = np.array(model.record).T
+    warm = stored < 60
+    assert warm.any() and (~warm).any()
+    assert np.all(updates[warm] == 0) and updates[~warm][0] == 1 and updates[-1] > 1
+    for bad in (-1, 2.5, True):
+        with pytest.raises(ValueError, match="warmup_stored"):
+            MoPASAC("MlpPolicy", env, warmup_stored=bad, device="cpu")
+
+
 # ---------------------------------------------------------------------------------------- exploration
 def _coverage(env, n_steps: int, seed: int, ee_from_obs) -> int:
     """Distinct 2 cm end-effector cells visited (every low-level step) by uniform random actions."""
@@ -355,6 +422,25 @@ def test_planner_on_push2d_scene(push2d):
     _check_path_valid(base.is_valid, q0, res.path, planner.check_resolution)
     out = base.execute_path(np.vstack([q0, res.path]))  # the env accepts the path as is
     assert out.steps == len(res.path)
+    planner.close()
+
+
+def test_scene_snapshot_check_agrees_with_is_valid(push2d):
+    """``validity_checker()`` answers as ``is_valid`` for the scene at the snapshot, and the
+    planner checks a query's configurations with it."""
+    base = push2d.unwrapped
+    push2d.reset(seed=2)
+    rng = np.random.default_rng(0)
+    qs = rng.uniform(base.joint_limits[:, 0], base.joint_limits[:, 1], (300, 4))
+    check = base.validity_checker()
+    got = [check(q) for q in qs]
+    assert got == [base.is_valid(q) for q in qs] and 0 < sum(got) < len(got)
+    calls = []
+    base.validity_checker = lambda: (calls.append(1), check)[1]  # instance attribute: seen by the planner
+    planner = OMPLPlanner.from_env(push2d, range=0.2)
+    planner.plan(base.arm_qpos(), np.array([-1.313, 0.987, -0.374, -0.511]))
+    assert calls == [1]  # one snapshot per query
+    del base.validity_checker
     planner.close()
 
 

@@ -8,7 +8,7 @@ For every planned path of more than 3 waypoints it also stores up to M sub-segme
 (start < goal waypoints) as extra transitions, with the action that maps to the
 sub-segment's displacement, its discounted reward and its own k (MoPA-RL's data reuse).
 
-Per-task defaults (SPEC §6) live in :data:`MOPA_DEFAULTS`; :func:`make_mopa_env` wraps a task
+Per-task defaults (MoPA-RL's) live in :data:`MOPA_DEFAULTS`; :func:`make_mopa_env` wraps a task
 with them and :func:`mopa_agent_kwargs` gives the matching agent arguments::
 
     env = make_mopa_env("Push2DObstacle-v0")
@@ -33,19 +33,34 @@ from stable_baselines3.common.type_aliases import ReplayBufferSamples
 
 from lfd_agents.mopa.wrapper import MoPAWrapper
 
-__all__ = ["MoPASAC", "MoPATD3", "MoPAReplayBuffer", "MOPA_DEFAULTS", "make_mopa_env", "mopa_agent_kwargs",
-           "smdp_targets"]
+__all__ = ["MoPASAC", "MoPATD3", "MoPAReplayBuffer", "MOPA_DEFAULTS", "MOPA_RL_SCHEDULE", "make_mopa_env",
+           "mopa_agent_kwargs", "smdp_targets"]
 
-#: Per-task MoPA settings (SPEC §6 / MoPA-RL scripts): ω, Δq_MP, M (reuse), reward scale,
-#: OMPL extension range and time limit (the original Sawyer-Push script used 2 s).
+#: Validity checks one OMPL search may run on Push2DObstacle (``max_checks``): 1.3x the most
+#: any successful query of a fixed, seeded set needed (31k; ``python tools/mopa_planner_queries.py``),
+#: so the success rate stays that of MoPA-RL's 1 s limit (about 60k checks on an idle core),
+#: while a query that cannot succeed (its goal in a pocket of free space cut off from the
+#: start) stops sooner, and after the same work however loaded the machine is.
+PUSH2D_MAX_CHECKS = 40_000
+
+#: Per-task MoPA settings (MoPA-RL scripts): ω, Δq_MP, M (reuse), reward scale, OMPL extension
+#: range and time limit (the original Sawyer-Push script used 2 s), the invalid-target pull-back
+#: step (MoPA-RL: 0.04 rad for the 2D pusher, 0.02 for Sawyer) and, where measured, a budget of
+#: validity checks per OMPL search (``max_checks``) with the time limit as a safety cap.
 MOPA_DEFAULTS: dict[str, dict[str, float]] = {
-    "Push2DObstacle-v0": dict(omega=0.5, dq_mp=1.0, reuse=30, reward_scale=0.2, range=0.2, time_limit=1.0),
+    "Push2DObstacle-v0": dict(omega=0.5, dq_mp=1.0, reuse=30, reward_scale=0.2, range=0.2, time_limit=10.0,
+                              max_checks=PUSH2D_MAX_CHECKS, invalid_target_step=0.04),
     "SawyerPushObstacle-v0": dict(omega=0.7, dq_mp=0.5, reuse=15, reward_scale=0.8, range=0.1, time_limit=1.0),
     "SawyerLiftObstacle-v0": dict(omega=0.5, dq_mp=0.5, reuse=15, reward_scale=0.5, range=0.1, time_limit=1.0),
     "SawyerAssemblyObstacle-v0": dict(omega=0.7, dq_mp=0.5, reuse=15, reward_scale=1.0, range=0.1, time_limit=1.0),
 }
 
-_WRAPPER_KEYS = ("omega", "dq_mp", "range", "time_limit")
+_WRAPPER_KEYS = ("omega", "dq_mp", "range", "time_limit", "max_checks", "invalid_target_step")
+
+#: MoPA-RL's learning schedule, the same on every task: ``warmup_stored`` uniformly random
+#: actions until 10k transitions (reuse included) are stored, then one gradient step per stored
+#: transition; timeouts stored as ``done``.
+MOPA_RL_SCHEDULE: dict[str, Any] = dict(warmup_stored=10_000, update_per_stored=True, timeouts_as_done=True)
 
 
 def _defaults(env_id: str) -> dict[str, float]:
@@ -72,9 +87,10 @@ def make_mopa_env(env: str | gym.Env, **overrides: Any) -> MoPAWrapper:
 
 
 def mopa_agent_kwargs(env_id: str, **overrides: Any) -> dict[str, Any]:
-    """``reward_scale`` and ``reuse`` (M) of a task for :class:`MoPASAC`/:class:`MoPATD3`."""
+    """``reward_scale`` and ``reuse`` (M) of a task for :class:`MoPASAC`/:class:`MoPATD3`, with
+    :data:`MOPA_RL_SCHEDULE` (warm-up, updates, timeouts)."""
     cfg = _defaults(env_id)
-    out = {"reward_scale": cfg["reward_scale"], "reuse": int(cfg["reuse"])}
+    out = {"reward_scale": cfg["reward_scale"], "reuse": int(cfg["reuse"]), **MOPA_RL_SCHEDULE}
     out.update(overrides)
     return out
 
@@ -90,7 +106,9 @@ class MoPAReplayBuffer(ReplayBuffer):
 
     Extra args: ``gamma`` (must equal the agent's), ``reward_scale`` (multiplies stored
     rewards), ``reuse`` (M, sub-segments stored per planned path; 0 disables), ``seed``.
-    Transitions whose ``info`` lacks ``mopa_k`` count as one step.
+    Transitions whose ``info`` lacks ``mopa_k`` count as one step. With
+    ``handle_timeout_termination=False`` a timeout is stored as ``done`` (MoPA-RL), also on the
+    reused sub-segments that end where the episode timed out.
     """
 
     def __init__(self, buffer_size: int, observation_space: spaces.Space, action_space: spaces.Space,
@@ -138,7 +156,7 @@ class MoPAReplayBuffer(ReplayBuffer):
         Waypoint pairs ``s < g`` (index 0 = start) are drawn without replacement; a pair is kept
         only if its displacement needs the planner (some joint beyond Δq_step) and maps to an
         action inside [-1, 1]. Reward: ``Σ_{i=s}^{g-1} γ^{i-s} r_i``; done only at the path end
-        of a terminated episode.
+        of a terminated episode (or, when timeouts are stored as done, of a timed-out one).
         """
         qpos, rewards, amap = traj["qpos"], np.asarray(traj["rewards"], dtype=np.float64), traj["action_map"]
         k = len(rewards)
@@ -159,7 +177,8 @@ class MoPAReplayBuffer(ReplayBuffer):
                 continue
             action = np.concatenate([arm, extra if g == k else np.zeros_like(extra)])
             reward = (disc_cum[g] - disc_cum[s]) / self.gamma ** s
-            done = bool(traj["terminated"]) and g == k
+            ended = bool(traj["terminated"]) or (not self.handle_timeout_termination and bool(traj.get("truncated")))
+            done = ended and g == k
             out.append((traj["observations"][s], traj["observations"][g], action, reward, done, g - s))
         return out
 
@@ -177,7 +196,8 @@ class MoPAReplayBuffer(ReplayBuffer):
         return ReplayBufferSamples(*tuple(map(self.to_torch, data)))
 
 
-def _mopa_kwargs(kwargs: dict[str, Any], reward_scale: float, reuse: int, seed: int | None) -> dict[str, Any]:
+def _mopa_kwargs(kwargs: dict[str, Any], reward_scale: float, reuse: int, seed: int | None,
+                 timeouts_as_done: bool) -> dict[str, Any]:
     """Route MoPA options into the replay-buffer arguments of an SB3 off-policy agent."""
     rb_class = kwargs.pop("replay_buffer_class", None) or MoPAReplayBuffer
     if not issubclass(rb_class, MoPAReplayBuffer):
@@ -187,6 +207,7 @@ def _mopa_kwargs(kwargs: dict[str, Any], reward_scale: float, reuse: int, seed: 
     rb_kwargs.setdefault("reward_scale", reward_scale)
     rb_kwargs.setdefault("reuse", reuse)
     rb_kwargs.setdefault("seed", seed)
+    rb_kwargs.setdefault("handle_timeout_termination", not timeouts_as_done)
     kwargs.update(replay_buffer_class=rb_class, replay_buffer_kwargs=rb_kwargs, seed=seed)
     return kwargs
 
@@ -212,16 +233,33 @@ class _MoPAAlgorithm:
     algo: ClassVar[str]
 
     def __init__(self, policy, env, *, reward_scale: float = 1.0, reuse: int = 15, seed: int | None = None,
-                 update_per_stored: bool = False, **kwargs: Any) -> None:
+                 update_per_stored: bool = False, warmup_stored: int = 0, timeouts_as_done: bool = False,
+                 **kwargs: Any) -> None:
+        if isinstance(warmup_stored, bool) or not isinstance(warmup_stored, (int, np.integer)) or warmup_stored < 0:
+            raise ValueError(f"warmup_stored must be a non-negative integer, got {warmup_stored!r}")
         self.update_per_stored = bool(update_per_stored)
+        self.warmup_stored = int(warmup_stored)
         self._stored_trained: int | None = None
-        super().__init__(policy, env, **_mopa_kwargs(kwargs, reward_scale, reuse, seed))
+        super().__init__(policy, env, **_mopa_kwargs(kwargs, reward_scale, reuse, seed, bool(timeouts_as_done)))
         _sync_gamma(self)
 
+    def in_warmup(self) -> bool:
+        """True while fewer than ``warmup_stored`` transitions (reuse included) are stored."""
+        return self.replay_buffer is not None and self.replay_buffer.stored < self.warmup_stored
+
+    def _sample_action(self, learning_starts: int, action_noise=None, n_envs: int = 1):
+        """SB3's action choice; uniformly random while :meth:`in_warmup` (MoPA-RL's warm-up)."""
+        if self.in_warmup():
+            learning_starts = self.num_timesteps + 1
+        return super()._sample_action(learning_starts, action_noise, n_envs)
+
     def train(self, gradient_steps: int, batch_size: int = 64) -> None:
-        """SB3's update; with ``update_per_stored`` one gradient step per transition stored since
-        the previous call, reuse transitions included (MoPA-RL's schedule: a planned action with
-        M reused sub-segments brings up to M + 1 updates; warm-up transitions bring none)."""
+        """SB3's update (none while :meth:`in_warmup`); with ``update_per_stored`` one gradient
+        step per transition stored since the previous call, reuse transitions included
+        (MoPA-RL's schedule: a planned action with M reused sub-segments brings up to M + 1
+        updates; warm-up transitions bring none)."""
+        if self.in_warmup():
+            return
         if self.update_per_stored:
             stored = self.replay_buffer.stored
             first = self._stored_trained is None or stored < self._stored_trained  # or a new buffer
@@ -251,6 +289,13 @@ class MoPASAC(_MoPAAlgorithm, SAC):
         reuse: M, sub-segments of each planned path stored as extra transitions (0: ablation).
         update_per_stored: one gradient step per stored transition, reuse included (MoPA-RL);
             default False: SB3's ``gradient_steps`` per decision of the policy.
+        warmup_stored: uniformly random actions, and no updates, until this many transitions
+            (reuse included) are stored (MoPA-RL: 10k); SB3's ``learning_starts`` (in
+            decisions) applies as well. Default 0.
+        timeouts_as_done: store a timeout as ``done`` (MoPA-RL: no bootstrapping at the
+            horizon); default False: SB3's ``handle_timeout_termination``.
+
+    :func:`mopa_agent_kwargs` gives MoPA-RL's values of all of these (``MOPA_RL_SCHEDULE``).
     """
 
     algo = "sac"

@@ -1,4 +1,4 @@
-"""MoPA action space: a Gymnasium wrapper adding motion-planned large actions (SPEC §6).
+"""MoPA action space: a Gymnasium wrapper adding motion-planned large actions.
 
 :class:`MoPAWrapper` turns any env with the planning interface (``arm_joint_names``,
 ``joint_limits``, ``arm_qpos()``, ``is_valid(q)``, ``dq_step``, ``execute_path(...)``; see
@@ -145,6 +145,7 @@ class MoPAWrapper(gym.Wrapper):
         invalid_target_tries: maximum pull-back tries (100).
         algorithm: ``"rrt_connect"`` or ``"rrt_star"`` (ablation).
         time_limit: OMPL time per query [s]. range: OMPL extension length.
+        max_checks: validity checks one OMPL search may run (None: ``time_limit`` only).
         planner: a ready :class:`OMPLPlanner` (overrides algorithm/time_limit/range/planner_kwargs).
         planner_kwargs: extra :class:`OMPLPlanner` arguments.
     """
@@ -165,6 +166,7 @@ class MoPAWrapper(gym.Wrapper):
         algorithm: str = "rrt_connect",
         time_limit: float = 1.0,
         range: float | None = None,  # noqa: A002 - OMPL's name
+        max_checks: int | None = None,
         planner: OMPLPlanner | None = None,
         planner_kwargs: dict | None = None,
     ) -> None:
@@ -194,6 +196,8 @@ class MoPAWrapper(gym.Wrapper):
             kw.setdefault("time_limit", time_limit)
             if range is not None:
                 kw.setdefault("range", range)
+            if max_checks is not None:
+                kw.setdefault("max_checks", max_checks)
             kw.setdefault("dq_step", dq_step)
             planner = OMPLPlanner(base.is_valid, np.asarray(base.joint_limits), **kw)
         self.planner = planner
@@ -323,7 +327,8 @@ class MoPAWrapper(gym.Wrapper):
         if mode in ("interpolation", "planner") and k > 1:
             info["mopa_trajectory"] = {
                 "qpos": np.asarray(ex.qpos), "observations": ex.observations, "rewards": np.asarray(ex.rewards),
-                "terminated": ex.terminated, "extra_action": u[self.n_arm:].copy(), "action_map": self.action_map,
+                "terminated": ex.terminated, "truncated": ex.truncated, "extra_action": u[self.n_arm:].copy(),
+                "action_map": self.action_map,
             }
         self._obs = ex.obs
         self.low_level_steps += k

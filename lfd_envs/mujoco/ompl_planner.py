@@ -19,6 +19,15 @@ only if that is blocked does it run RRT-Connect (or RRT*), simplify the solution
 it so that no joint moves more than Δq_step between consecutive waypoints. Every returned
 waypoint has been checked with ``is_valid``.
 
+Cost of a query: the search stops at ``time_limit`` or, with ``max_checks``, after that many
+validity checks of the OMPL search, whichever comes first. A budget in checks does not depend on
+the machine's speed or load, so a seeded planner's failures are as reproducible as its paths;
+size it from the check counts of the queries that succeed (``tools/mopa_planner_queries.py``).
+When ``is_valid`` is the bound ``is_valid`` of an env offering ``validity_checker()`` (the
+planning interface of :mod:`lfd_envs.mujoco.planning`), each query takes one snapshot of the
+scene from it and checks every configuration of that query against the snapshot, instead of
+copying the live simulation state at every check (``snapshot_scene=False`` turns this off).
+
 Interpreter-exit noise: nanobind prints "leaked instances" warnings when OMPL objects are still
 alive at shutdown (the Python validity callback held inside C++ forms a cycle the garbage
 collector cannot see). ``ompl`` 2.0.1 does not expose nanobind's ``set_leak_warnings``, so this
@@ -151,6 +160,10 @@ class OMPLPlanner:
         interpolate_first: try the straight line before planning (default True).
         max_attempts: OMPL queries per plan when a solution fails the final segment check
             (all within ``time_limit``).
+        max_checks: validity checks the OMPL search of one plan may run (all attempts
+            together); ``None`` (default): limited by ``time_limit`` only.
+        snapshot_scene: check a query's configurations against one snapshot of the scene
+            (module docstring); only used when ``is_valid`` offers it.
         seed: seed of this planner's OMPL queries: with a seed, the ``k``-th OMPL query gives
             the same path whatever ran before in the process (module docstring); ``None``
             leaves OMPL's process-global randomness as it is.
@@ -172,6 +185,8 @@ class OMPLPlanner:
         simplify_time: float = 0.1,
         interpolate_first: bool = True,
         max_attempts: int = 3,
+        max_checks: int | None = None,
+        snapshot_scene: bool = True,
         seed: int | None = None,
         log_level: str = "error",
     ) -> None:
@@ -205,6 +220,17 @@ class OMPLPlanner:
         self.simplify_time = float(simplify_time)
         self.interpolate_first = bool(interpolate_first)
         self.max_attempts = max(1, int(max_attempts))
+        if max_checks is not None and (isinstance(max_checks, bool) or not isinstance(max_checks, (int, np.integer))
+                                       or max_checks < 1):
+            raise ValueError(f"max_checks must be a positive integer or None, got {max_checks!r}")
+        self.max_checks = None if max_checks is None else int(max_checks)
+        self.snapshot_scene = bool(snapshot_scene)
+        self._scene_checker = _scene_factory(is_valid) if self.snapshot_scene else None
+        #: validity function of the OMPL callback (swapped per query) and OMPL checks so far;
+        #: lists, so the callback reaches them without referencing ``self``
+        self._query_check: list[Callable[[np.ndarray], bool]] = [_unchecked(is_valid)]
+        self._ompl_checks = [0]
+        self._active_check: Callable[[np.ndarray], bool] | None = None
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
             raise ValueError(f"seed must be a non-negative integer or None, got {seed!r}")
         self._set_log_level(log_level)
@@ -250,7 +276,8 @@ class OMPLPlanner:
         space.setBounds(bounds)
         ss = og.SimpleSetup(space)
         # The callback must not reference ``self`` (a cycle through C++ that gc cannot see).
-        ss.setStateValidityChecker(_make_checker(_unchecked(self.is_valid), self.dim, weakref.ref(self)))
+        ss.setStateValidityChecker(_make_checker(self._query_check, self._ompl_checks, self.dim,
+                                                 weakref.ref(self)))
         si = ss.getSpaceInformation()
         extent = float(space.getMaximumExtent())
         si.setStateValidityCheckingResolution(min(1.0, self.motion_resolution / extent))
@@ -287,7 +314,10 @@ class OMPLPlanner:
         return q
 
     def check(self, q: np.ndarray) -> bool:
-        """``is_valid(q)`` for a configuration in joint coordinates."""
+        """``is_valid(q)`` for a configuration in joint coordinates (during :meth:`plan`: the
+        query's snapshot check)."""
+        if self._active_check is not None:
+            return bool(self._active_check(np.asarray(q, dtype=np.float64)))
         return bool(self.is_valid(np.asarray(q, dtype=np.float64)))
 
     def segment_is_valid(self, a: np.ndarray, b: np.ndarray, resolution: float | None = None) -> bool:
@@ -323,7 +353,12 @@ class OMPLPlanner:
         start = self.clip(self._as_q(start, "start"))
         goal = self.clip(self._as_q(goal, "goal"))
         self.stats["calls"] += 1
-        result = self._plan(start, goal, self.time_limit if time_limit is None else float(time_limit))
+        fast = self._scene_checker() if self._scene_checker is not None else _unchecked(self.is_valid)
+        self._query_check[0] = self._active_check = fast
+        try:
+            result = self._plan(start, goal, self.time_limit if time_limit is None else float(time_limit))
+        finally:
+            self._active_check = None
         result.planning_time = time.perf_counter() - t0
         self.stats["time"] += result.planning_time
         key = result.status if result.status in self.stats else "invalid"
@@ -341,9 +376,10 @@ class OMPLPlanner:
             if line is not None:
                 return PlanResult(line, "interpolation")
         deadline = time.perf_counter() + time_limit
+        self._ompl_checks[0] = 0
         for attempt in range(self.max_attempts):
             remaining = deadline - time.perf_counter()
-            if remaining <= 0:
+            if remaining <= 0 or self._budget_spent():
                 break
             if self.algorithm == "rrt_star":  # anytime: share the budget between attempts
                 remaining /= self.max_attempts - attempt
@@ -355,8 +391,23 @@ class OMPLPlanner:
             # OMPL checked its edges at the same resolution but at other points; re-check the
             # executed segments so every point at ``check_resolution`` spacing is valid.
             if self.path_is_valid(start, path):
-                return PlanResult(path, "planner", extra={"raw_waypoints": len(raw), "attempts": attempt + 1})
-        return PlanResult(empty, "failed")
+                return PlanResult(path, "planner", extra={"raw_waypoints": len(raw), "attempts": attempt + 1,
+                                                          "checks": self._ompl_checks[0]})
+        return PlanResult(empty, "failed", extra={"checks": self._ompl_checks[0]})
+
+    def _budget_spent(self) -> bool:
+        return self.max_checks is not None and self._ompl_checks[0] >= self.max_checks
+
+    def _termination(self, time_limit: float):
+        """OMPL termination condition: ``time_limit`` seconds or the check budget spent,
+        whichever comes first (``time_limit`` itself when there is no budget)."""
+        from ompl import base as ob
+
+        if self.max_checks is None:
+            return time_limit
+        end = time.perf_counter() + time_limit
+        counter, budget, clock = self._ompl_checks, self.max_checks, time.perf_counter
+        return ob.PlannerTerminationCondition(lambda: counter[0] >= budget or clock() >= end)
 
     def path_is_valid(self, start: np.ndarray, path: np.ndarray) -> bool:
         """Every waypoint and the straight segments between them (at ``check_resolution``) are valid."""
@@ -379,7 +430,7 @@ class OMPLPlanner:
         s[0:self.dim] = (start - self._offset).tolist()
         g[0:self.dim] = (goal - self._offset).tolist()
         ss.setStartAndGoalStates(s, g, 1e-9)
-        ss.solve(time_limit)
+        ss.solve(self._termination(time_limit))
         if not ss.haveExactSolutionPath():
             return None
         if self.simplify == "max":  # within the query's time budget (at least 10 ms)
@@ -435,16 +486,32 @@ def _unchecked(is_valid: Callable[[np.ndarray], bool]) -> Callable[[np.ndarray],
     return is_valid
 
 
-def _make_checker(is_valid: Callable[[np.ndarray], bool], dim: int, planner_ref: weakref.ref):
-    """OMPL validity callback converting a state to joint coordinates (holds only a weakref)."""
+def _scene_factory(is_valid: Callable[[np.ndarray], bool]) -> Callable[[], Callable[[np.ndarray], bool]] | None:
+    """The owner's ``validity_checker`` (a per-query snapshot check) when ``is_valid`` is a bound
+    ``is_valid`` method of an object offering one, else None."""
+    owner = getattr(is_valid, "__self__", None)
+    factory = getattr(owner, "validity_checker", None)
+    if getattr(is_valid, "__name__", None) == "is_valid" and callable(factory):
+        return factory
+    return None
+
+
+def _make_checker(holder: list, counter: list, dim: int, planner_ref: weakref.ref):
+    """OMPL validity callback converting a state to joint coordinates and counting checks.
+
+    ``holder[0]`` is the validity function of the current query and ``counter[0]`` the checks
+    run so far; the callback holds only these lists and a weakref to the planner.
+    """
 
     def check(state) -> bool:
         planner = planner_ref()
         offset = planner._offset if planner is not None else 0.0
-        return bool(is_valid(np.array(state[0:dim]) + offset))
+        counter[0] += 1
+        return bool(holder[0](np.array(state[0:dim]) + offset))
 
     def check_limited(state) -> bool:  # no unlimited joints: no offset (saves ~2 µs a call)
-        return bool(is_valid(np.array(state[0:dim])))
+        counter[0] += 1
+        return bool(holder[0](np.array(state[0:dim])))
 
     planner = planner_ref()
     return check if planner is None or planner.unlimited.any() else check_limited

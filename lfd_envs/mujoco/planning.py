@@ -1,4 +1,4 @@
-"""Planning interface of the obstructed MuJoCo envs (SPEC §5), used by MoPA and the experts.
+"""Planning interface of the obstructed MuJoCo envs, used by MoPA and the experts.
 
 :class:`PlanningMixin` is mixed into a :class:`~lfd_envs.mujoco.base.MujocoEnv` subclass
 (``class Env(PlanningMixin, MujocoEnv)``) and gives it:
@@ -13,6 +13,8 @@
   unless its geom pair is in ``ignored_contact_pairs`` or neither geom moves with the arm
   (such contacts do not depend on ``q``). Joint limits are not part of validity; planners
   sample inside ``joint_limits``. The live ``MjData`` is never touched;
+  :meth:`~PlanningMixin.validity_checker` gives the same check against a snapshot of the
+  live state taken once (for the many checks of one planning query);
 * ``ignored_contact_pairs`` -- list of ``(name_a, name_b)``; each name is a geom or a body
   (a body stands for all of its geoms); contacts between the two sets are ignored;
 * ``planning_attached_bodies()`` -- optional hook returning ``(body, parent_body)`` pairs:
@@ -30,7 +32,7 @@ deterministic for a given generator (no OMPL, no time limits in the result).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from typing import Any, Callable, ClassVar
 
 import mujoco
 import numpy as np
@@ -259,7 +261,9 @@ class PlanningMixin:
             raise ValueError(f"ignored_contact_pairs: {name!r} is neither a geom nor a body of the model")
         return np.array(sorted(geoms), dtype=int)
 
-    def _load_plan_data(self, q: np.ndarray) -> mujoco.MjData:
+    def _snapshot_scene(self) -> list[tuple[int, int, np.ndarray, np.ndarray]]:
+        """Copy the live state into the private ``MjData``; returns the attached bodies'
+        ``(qpos address, parent, p_rel, q_rel)`` relative poses in the live simulation."""
         if getattr(self, "_plan_ready_for", None) != id(self.model):
             self._planning_setup()
         m, live, pd = self.model, self.data, self._plan_data
@@ -267,23 +271,38 @@ class PlanningMixin:
         if m.nmocap:
             pd.mocap_pos[:] = live.mocap_pos
             pd.mocap_quat[:] = live.mocap_quat
-        pd.qpos[self._arm_qadr] = q
-        mujoco.mj_kinematics(m, pd)
-        if self._attached:
-            self._carry_attached(pd)
-        mujoco.mj_collision(m, pd)
-        return pd
-
-    def _carry_attached(self, pd: mujoco.MjData) -> None:
-        """Re-pose attached bodies so their pose relative to the parent equals the live one."""
-        live = self.data
+        poses = []
         for body, parent, qadr in self._attached:
-            # relative pose in the live sim: p_rel = R_p^T (p_b - p_p), q_rel = q_p^-1 q_b
+            # p_rel = R_p^T (p_b - p_p), q_rel = q_p^-1 q_b
             inv = np.empty(4)
             mujoco.mju_negQuat(inv, live.xquat[parent])
             q_rel = np.empty(4)
             mujoco.mju_mulQuat(q_rel, inv, live.xquat[body])
             p_rel = live.xmat[parent].reshape(3, 3).T @ (live.xpos[body] - live.xpos[parent])
+            poses.append((qadr, parent, p_rel, q_rel))
+        return poses
+
+    def _load_plan_data(self, q: np.ndarray) -> mujoco.MjData:
+        return self._scene_poser(self._snapshot_scene())(q)
+
+    def _scene_poser(self, poses: list) -> Callable[[np.ndarray], mujoco.MjData]:
+        """``pose(q)``: arm at ``q`` in the snapshot scene, attached bodies carried, contacts found."""
+        m, pd, arm = self.model, self._plan_data, self._arm_qadr
+        qpos, kinematics, collision, carry = pd.qpos, mujoco.mj_kinematics, mujoco.mj_collision, self._carry_attached
+
+        def pose(q: np.ndarray) -> mujoco.MjData:
+            qpos[arm] = q
+            kinematics(m, pd)
+            if poses:
+                carry(pd, poses)
+            collision(m, pd)
+            return pd
+
+        return pose
+
+    def _carry_attached(self, pd: mujoco.MjData, poses: list) -> None:
+        """Re-pose attached bodies so their pose relative to the parent equals the snapshot's."""
+        for qadr, parent, p_rel, q_rel in poses:
             pos = pd.xpos[parent] + pd.xmat[parent].reshape(3, 3) @ p_rel
             quat = np.empty(4)
             mujoco.mju_mulQuat(quat, pd.xquat[parent], q_rel)
@@ -303,7 +322,10 @@ class PlanningMixin:
 
     def _is_valid_unchecked(self, q: np.ndarray) -> bool:
         """:meth:`is_valid` for a known-good float64 array (planner inner loops)."""
-        pd = self._load_plan_data(q)
+        return self._contacts_allowed(self._load_plan_data(q))
+
+    def _contacts_allowed(self, pd: mujoco.MjData) -> bool:
+        """No contact of ``pd`` penetrates ``planning_penetration`` or more outside the ignored pairs."""
         if pd.ncon == 0:
             return True
         contact = pd.contact
@@ -312,6 +334,22 @@ class PlanningMixin:
             return True
         g = contact.geom[deep]
         return bool(self._ignored_geoms[g[:, 0], g[:, 1]].all())
+
+    def validity_checker(self) -> Callable[[np.ndarray], bool]:
+        """:meth:`is_valid` against a snapshot of the current live state, for many checks in a row.
+
+        Everything but the arm (objects, mocap bodies, attached bodies' relative poses) is copied
+        from the live simulation once, now; the returned ``check(q)`` then only poses the arm and
+        finds contacts. It takes known-good ``(d,)`` float64 arrays (no input checks) and gives
+        the answer :meth:`is_valid` gives while the live state stays as it was at the snapshot.
+        Any later :meth:`is_valid` call or snapshot replaces the scene of earlier checkers.
+        """
+        pose, allowed = self._scene_poser(self._snapshot_scene()), self._contacts_allowed
+
+        def check(q: np.ndarray) -> bool:
+            return allowed(pose(q))
+
+        return check
 
     def colliding_pairs(self, q: Any) -> list[tuple[str, str, float]]:
         """``(geom_a, geom_b, penetration)`` of every contact that makes ``q`` invalid (for debugging)."""

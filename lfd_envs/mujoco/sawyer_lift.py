@@ -127,9 +127,9 @@ class SawyerLiftObstacleEnv(SawyerObstacleEnv):
         """The can moves with the gripper in :meth:`is_valid` while it is grasped."""
         return [("can", sm.EEF_BODY)]
 
-    def _carry_attached(self, pd: mujoco.MjData) -> None:
+    def _carry_attached(self, pd: mujoco.MjData, poses: list) -> None:
         if self._grasped:  # otherwise the can stays where it is in the live simulation
-            super()._carry_attached(pd)
+            super()._carry_attached(pd, poses)
 
     # ------------------------------------------------------------------ quantities
     def can_pos(self) -> np.ndarray:
