@@ -268,6 +268,8 @@ BUILTIN_AGENTS: dict[str, AgentFactory] = {
     "sac_lfd": _lfd_demo_agent("SACLfD"),
     "bc": _lfd_demo_agent("BC"),
     "awac": _lfd_demo_agent("AWAC"),
+    "drq": _lfd_agent("DrQ"),
+    "curl": _lfd_agent("CURL"),
     "mopa_sac": _lfd_agent("MoPASAC", "lfd_agents.mopa"),
     "mail": _lfd_agent("MAILAgent", "lfd_agents.mail"),
     "mail_dataset": _named_factory("benchmarks.mail_dataset", "mail_dataset"),

@@ -23,6 +23,8 @@ TINY_AGENT_KWARGS: dict[str, dict[str, Any]] = {
     "sac_lfd": {"demo_episodes": 1, "learning_starts": 0, "batch_size": 4, "buffer_size": 1000},
     "awac": {"demo_episodes": 1, "learning_starts": 0, "batch_size": 4, "buffer_size": 1000, "offline_steps": 4},
     "bc": {"demo_episodes": 1, "n_epochs": 1, "batch_size": 4},
+    "drq": {"learning_starts": 1, "batch_size": 4, "buffer_size": 1000},
+    "curl": {"learning_starts": 1, "batch_size": 4, "buffer_size": 1000},
     "mopa_sac": {"learning_starts": 0, "batch_size": 4, "buffer_size": 1000},
     "mail": {"teacher_episodes": 1, "population": 4, "simulator_worlds": 4, "random_transitions": 8,
              "dynamics_epochs": 1, "batch_size": 4, "buffer_size": 1000},

@@ -16,6 +16,9 @@ _LAZY: dict[str, str] = {
     "SACLfD": "lfd_agents.baselines:SACLfD",
     "BC": "lfd_agents.baselines:BC",
     "AWAC": "lfd_agents.baselines:AWAC",
+    # SAC from pixels: DrQ and CURL (shared encoder, augmented batches)
+    "DrQ": "lfd_agents.drq:DrQ",
+    "CURL": "lfd_agents.curl:CURL",
     "ReferenceStateInit": "lfd_agents.rsi:ReferenceStateInit",
     "ImageEncoder": "lfd_agents.networks:ImageEncoder",
     "load_episodes": "lfd_agents.demos:load_episodes",

@@ -25,14 +25,14 @@ def random_shift(images: th.Tensor, pad: int = 2, generator: th.Generator | None
         return images
     b, c, h, w = images.shape
     dtype = images.dtype
-    padded = F.pad(images.float(), (pad, pad, pad, pad), mode="replicate")
+    padded = F.pad(images if images.is_floating_point() else images.float(), (pad, pad, pad, pad), mode="replicate")
     dy = th.randint(0, 2 * pad + 1, (b,), device=images.device, generator=generator)
     dx = th.randint(0, 2 * pad + 1, (b,), device=images.device, generator=generator)
-    rows = (dy[:, None] + th.arange(h, device=images.device)[None, :])  # (B, H)
-    cols = (dx[:, None] + th.arange(w, device=images.device)[None, :])  # (B, W)
-    batch = th.arange(b, device=images.device)[:, None, None]
-    out = padded.permute(0, 2, 3, 1)[batch, rows[:, :, None], cols[:, None, :]]  # (B, H, W, C)
-    return out.permute(0, 3, 1, 2).contiguous().to(dtype)
+    wp = w + 2 * pad
+    window = (th.arange(h, device=images.device)[:, None] * wp + th.arange(w, device=images.device)[None, :]).view(1, -1)
+    index = (dy * wp + dx)[:, None] + window  # (B, H·W): flat positions of each image's window in the padded image
+    out = padded.view(b, c, -1).gather(2, index[:, None, :].expand(b, c, h * w)).view(b, c, h, w)
+    return out.to(dtype)
 
 
 def image_keys(space: spaces.Space) -> list[str | None]:
@@ -45,13 +45,15 @@ def image_keys(space: spaces.Space) -> list[str | None]:
     return []
 
 
-def augment_observations(obs: Any, keys: list[str | None], pad: int) -> Any:
-    """Apply :func:`random_shift` to the image entries ``keys`` of a batch of observations."""
+def augment_observations(obs: Any, keys: list[str | None], pad: int,
+                         generator: th.Generator | None = None) -> Any:
+    """Apply :func:`random_shift` to the image entries ``keys`` of a batch of observations
+    (shifts drawn from ``generator``, or torch's global generator when None)."""
     if not keys or pad <= 0:
         return obs
     if isinstance(obs, dict):
         out = dict(obs)
         for k in keys:
-            out[k] = random_shift(obs[k], pad)
+            out[k] = random_shift(obs[k], pad, generator)
         return out
-    return random_shift(obs, pad)
+    return random_shift(obs, pad, generator)

@@ -49,9 +49,9 @@ from torch import nn
 
 from lfd_agents.augment import augment_observations, image_keys
 from lfd_agents.demos import episodes_with_states, fill_replay_buffer, load_episodes
-from lfd_agents.networks import (DictPolicyDefaults, EnsembleCritic, GaussianActor, ImagePolicyDefaults,
-                                 KeySubsetExtractor, fast_optimizer_kwargs, frozen, normal_log_prob, polyak_update_,
-                                 q_values)
+from lfd_agents.networks import (DetachedExtractor, DictPolicyDefaults, EnsembleCritic, GaussianActor,
+                                 ImagePolicyDefaults, KeySubsetExtractor, fast_optimizer_kwargs, frozen,
+                                 normal_log_prob, own_parameters, polyak_update_, q_values)
 from lfd_agents.rsi import ReferenceStateInit
 
 DEFAULT_NET_ARCH = (1024, 1024)
@@ -215,6 +215,11 @@ class DMfDPolicy(BasePolicy):
             ``"image"`` when the observation also has other keys (asymmetric actor-critic); the
             critics always see every key.
         actor_weight_decay: Adam weight decay of the actor (1e-4 in DMfD).
+        share_encoder: the actor reads the critic's image encoder without gradient (SAC-AE/DrQ)
+            instead of training its own (DMfD); ``"auto"``: shared when there are images. Only
+            the critic's loss then trains the encoder, and an update runs the encoder about half
+            as often. ``share_encoder=False`` with ``features_extractor_kwargs=THESIS_ENCODER``
+            (:mod:`lfd_agents.networks`) is the thesis's image network.
         n_critics: number of Q networks (2).
         log_std_bounds: bounds of the state-independent log-std.
     """
@@ -231,7 +236,8 @@ class DMfDPolicy(BasePolicy):
                  actor_keys: Sequence[str] | str | None = "auto", normalize_images: bool = True,
                  optimizer_class: type[th.optim.Optimizer] = th.optim.Adam,
                  optimizer_kwargs: dict[str, Any] | None = None, actor_weight_decay: float = 1e-4,
-                 n_critics: int = 2, log_std_bounds: tuple[float, float] = (-6.0, 0.0)):
+                 n_critics: int = 2, log_std_bounds: tuple[float, float] = (-6.0, 0.0),
+                 share_encoder: bool | str = "auto"):
         super().__init__(observation_space, action_space, features_extractor_class, features_extractor_kwargs,
                          optimizer_class=optimizer_class, optimizer_kwargs=optimizer_kwargs,
                          squash_output=True, normalize_images=normalize_images)
@@ -247,6 +253,9 @@ class DMfDPolicy(BasePolicy):
         self.actor_weight_decay = float(actor_weight_decay)
         self.n_critics = int(n_critics)
         self.log_std_bounds = tuple(log_std_bounds)
+        if share_encoder not in (True, False, "auto"):
+            raise ValueError(f"share_encoder must be True, False or 'auto', got {share_encoder!r}")
+        self.share_encoder = bool(image_keys(observation_space)) if share_encoder == "auto" else share_encoder
         self._build(lr_schedule)
 
     def _extractor(self, keys: list[str] | None) -> BaseFeaturesExtractor:
@@ -257,15 +266,30 @@ class DMfDPolicy(BasePolicy):
             kwargs["keys"] = keys
         return self.features_extractor_class(self.observation_space, **kwargs)
 
+    def _shared_extractor(self, critic_fe: BaseFeaturesExtractor) -> BaseFeaturesExtractor:
+        """The actor's view of the critic's encoder: its ``actor_keys`` (all when None), images
+        through the critic's image encoders without gradient."""
+        if self.actor_keys is None:
+            return DetachedExtractor(critic_fe)
+        if not isinstance(critic_fe, KeySubsetExtractor):
+            raise ValueError("share_encoder with actor_keys needs features_extractor_class=KeySubsetExtractor")
+        images = set(image_keys(self.observation_space))
+        encoders = {k: DetachedExtractor(critic_fe.extractors[k]) for k in self.actor_keys if k in images}
+        return KeySubsetExtractor(self.observation_space, keys=self.actor_keys, encoders=encoders)
+
     def _build(self, lr_schedule: Schedule) -> None:
-        actor_fe = self._extractor(self.actor_keys)
+        if self.share_encoder:  # the critic's encoder first, then the actor's view of it
+            critic = self._make_critic()
+            actor_fe = self._shared_extractor(critic.features_extractor)
+        else:  # actor first: the initial weights of a seed stay those of separate encoders
+            actor_fe = self._extractor(self.actor_keys)
         self.actor = GaussianActor(self.observation_space, self.action_space, self.net_arch_pi, actor_fe,
                                    actor_fe.features_dim, self.activation_fn, self.normalize_images,
                                    self.log_std_bounds)
         opt_kwargs = fast_optimizer_kwargs(self.optimizer_class, self.optimizer_kwargs)
         actor_kwargs = {**opt_kwargs, "weight_decay": self.actor_weight_decay}
-        self.actor.optimizer = self.optimizer_class(self.actor.parameters(), lr=lr_schedule(1), **actor_kwargs)
-        self.critic = self._make_critic()
+        self.actor.optimizer = self.optimizer_class(own_parameters(self.actor), lr=lr_schedule(1), **actor_kwargs)
+        self.critic = critic if self.share_encoder else self._make_critic()
         self.critic_target = self._make_critic()
         self.critic_target.load_state_dict(self.critic.state_dict())
         self.critic_target.set_training_mode(False)
@@ -284,7 +308,8 @@ class DMfDPolicy(BasePolicy):
                     features_extractor_kwargs=self.features_extractor_kwargs, actor_keys=self.actor_keys,
                     optimizer_class=self.optimizer_class, optimizer_kwargs=self.optimizer_kwargs,
                     actor_weight_decay=self.actor_weight_decay, n_critics=self.n_critics,
-                    log_std_bounds=self.log_std_bounds, lr_schedule=self._dummy_schedule)
+                    log_std_bounds=self.log_std_bounds, share_encoder=self.share_encoder,
+                    lr_schedule=self._dummy_schedule)
         return data
 
     def forward(self, obs: th.Tensor, deterministic: bool = False) -> th.Tensor:
@@ -555,14 +580,22 @@ class DMfD(OffPolicyAlgorithm):
         and with ``entropy_weight == 0`` (AWAC) the entropy term, whose gradient is then
         multiplied by 0, is evaluated without a graph.
         """
-        mean, std = self.actor.mean_std(data.observations)
         critic = self.critic
+        fe = self.actor.features_extractor
+        shared = isinstance(fe, DetachedExtractor) and fe.encoder is critic.features_extractor
+        if shared:  # the actor reads the critic's encoder: encode the observations once for both
+            with th.no_grad():
+                features = critic.features(data.observations)
+            mean, std = self.actor.mean_from_features(features), self.actor.log_std().exp()
+        else:
+            mean, std = self.actor.mean_std(data.observations)
         with frozen(critic), th.set_grad_enabled(th.is_grad_enabled() and self.entropy_weight > 0):
             pi_actions = mean + th.randn_like(mean) * std  # reparameterised a_π ~ π(·|o)
             logp_pi = normal_log_prob(pi_actions, mean, std)
             if isinstance(critic, EnsembleCritic):  # encode the observations once for both action sets
                 with th.no_grad():
-                    features = critic.features(data.observations)
+                    if not shared:
+                        features = critic.features(data.observations)
                     q_buffer = critic.q_from_features(features, data.actions).min(dim=0).values
                 q_pi = critic.q_from_features(features, pi_actions).min(dim=0).values
             else:

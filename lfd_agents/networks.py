@@ -1,9 +1,12 @@
 """Network building blocks shared by the demonstration-based agents (DMfD, AWAC, BC).
 
-* :class:`ImageEncoder` — the DMfD/DrQ image encoder (4 conv layers of 32 channels, LeakyReLU,
-  then Linear → LayerNorm → tanh). Works for images from 16×16 up; SB3's ``NatureCNN`` needs
+* :class:`ImageEncoder` — the image encoder (by default 3 conv layers of 16 channels, strides
+  2-2-1; ``THESIS_ENCODER`` gives DMfD's 4 layers of 32 channels, strides 2-1-1-1), LeakyReLU,
+  then Linear → LayerNorm → tanh. Works for images from 16×16 up; SB3's ``NatureCNN`` needs
   at least 36×36, so pass ``policy_kwargs=dict(features_extractor_class=ImageEncoder)`` to run
   plain SB3 algorithms on our default 32×32 images.
+* :class:`DetachedExtractor`, :func:`own_parameters` — an actor reading the critic's encoder
+  without gradient (one encoder for actor and critic, trained by the critic's loss).
 * :class:`KeySubsetExtractor` — Dict-observation extractor over a chosen subset of keys (images
   through :class:`ImageEncoder`, vectors flattened). The asymmetric actor-critic uses it to give
   the actor only ``"image"`` while the critics see ``"state"`` and ``"image"``.
@@ -47,8 +50,17 @@ def _channels_first(space: spaces.Box) -> tuple[int, int, int]:
     return shape  # type: ignore[return-value]
 
 
+#: the encoder of the thesis (DMfD, after DrQ): 4 conv layers of 32 channels, strides 2, 1, 1, 1
+THESIS_ENCODER: dict[str, Any] = {"channels": 32, "strides": (2, 1, 1, 1)}
+
+
 class ImageEncoder(BaseFeaturesExtractor):
-    """DMfD image encoder: Conv(k3,s2) + 3×Conv(k3,s1), 32 channels, LeakyReLU; Linear → LayerNorm → tanh.
+    """Image encoder: 3×3 convolutions with LeakyReLU, then Linear → LayerNorm → tanh.
+
+    The default is a lean encoder: 3 conv layers of 16 channels with strides 2, 2, 1 (a 32×32
+    image ends as 16×5×5 after the convolutions). ``**THESIS_ENCODER`` (``channels=32,
+    strides=(2, 1, 1, 1)``) gives the thesis's DMfD/DrQ encoder (32×9×9 from 32×32), about 8×
+    the multiply-adds; ``python -m benchmarks.train_speed --image`` measures what each costs.
 
     Expects channel-first images (SB3 transposes channel-last image observations itself) that
     SB3 has already scaled to [0, 1].
@@ -56,23 +68,30 @@ class ImageEncoder(BaseFeaturesExtractor):
     Args:
         observation_space: image ``Box`` (C, H, W), H and W ≥ 16.
         features_dim: output size (50 in DMfD).
-        channels: conv channels.
+        channels: channels of every conv layer.
+        strides: one stride per conv layer.
     """
 
-    def __init__(self, observation_space: spaces.Box, features_dim: int = 50, channels: int = 32):
+    def __init__(self, observation_space: spaces.Box, features_dim: int = 50, channels: int = 16,
+                 strides: Sequence[int] = (2, 2, 1)):
         super().__init__(observation_space, features_dim)
         c, h, w = _channels_first(observation_space)
         if min(h, w) < 16:
             raise ValueError(f"ImageEncoder needs images of at least 16x16 pixels, got {h}x{w}")
-        self.convs = nn.Sequential(
-            nn.Conv2d(c, channels, 3, stride=2), nn.LeakyReLU(),
-            nn.Conv2d(channels, channels, 3, stride=1), nn.LeakyReLU(),
-            nn.Conv2d(channels, channels, 3, stride=1), nn.LeakyReLU(),
-            nn.Conv2d(channels, channels, 3, stride=1), nn.LeakyReLU(),
-            nn.Flatten(),
-        )
+        strides = tuple(int(s) for s in strides)
+        if channels < 1 or not strides or min(strides) < 1:
+            raise ValueError(f"channels must be >= 1 and strides a non-empty list of ints >= 1, "
+                             f"got channels={channels}, strides={strides}")
+        layers: list[nn.Module] = []
+        for i, stride in enumerate(strides):
+            layers += [nn.Conv2d(c if i == 0 else channels, channels, 3, stride=stride), nn.LeakyReLU()]
+        self.convs = nn.Sequential(*layers, nn.Flatten())
+        self.channels, self.strides = int(channels), strides
         with th.no_grad():
-            n_flat = self.convs(th.zeros(1, c, h, w)).shape[1]
+            try:
+                n_flat = self.convs(th.zeros(1, c, h, w)).shape[1]
+            except RuntimeError as exc:
+                raise ValueError(f"strides {strides} shrink a {h}x{w} image to nothing") from exc
         self.head = nn.Sequential(nn.Linear(n_flat, features_dim), nn.LayerNorm(features_dim), nn.Tanh())
         for m in self.convs:
             if isinstance(m, nn.Conv2d):
@@ -80,7 +99,31 @@ class ImageEncoder(BaseFeaturesExtractor):
                 nn.init.zeros_(m.bias)
 
     def forward(self, observations: th.Tensor) -> th.Tensor:
-        return self.head(self.convs(observations))
+        # channels-last activations: the CPU convolution kernels run faster on them (same results)
+        return self.head(self.convs(observations.contiguous(memory_format=th.channels_last)))
+
+
+class DetachedExtractor(BaseFeaturesExtractor):
+    """Features of another module's encoder without gradient (an actor reading the critic's
+    encoder, as SAC-AE and DrQ do: only the critic's loss trains it).
+
+    ``shared_parameters()`` are the encoder's; optimisers of the module holding this one should
+    leave them out (:func:`own_parameters`).
+    """
+
+    def __init__(self, encoder: BaseFeaturesExtractor):
+        super().__init__(encoder._observation_space, encoder.features_dim)
+        self.encoder = encoder
+
+    def forward(self, observations: Any) -> th.Tensor:
+        with th.no_grad():
+            return self.encoder(observations)
+
+
+def own_parameters(module: nn.Module) -> list[nn.Parameter]:
+    """Parameters of ``module`` except those it reads through a :class:`DetachedExtractor`."""
+    shared = {id(p) for m in module.modules() if isinstance(m, DetachedExtractor) for p in m.encoder.parameters()}
+    return [p for p in module.parameters() if id(p) not in shared]
 
 
 class KeySubsetExtractor(BaseFeaturesExtractor):
@@ -90,10 +133,14 @@ class KeySubsetExtractor(BaseFeaturesExtractor):
         observation_space: the Dict observation space.
         keys: keys to use (all keys when None).
         image_features_dim: output size of each image key's :class:`ImageEncoder`.
+        image_encoder_kwargs: further :class:`ImageEncoder` arguments (e.g. ``THESIS_ENCODER``).
+        encoders: modules to use for some keys instead of new ones (e.g. another extractor's
+            image encoder wrapped in a :class:`DetachedExtractor`).
     """
 
     def __init__(self, observation_space: spaces.Dict, keys: Sequence[str] | None = None,
-                 image_features_dim: int = 50):
+                 image_features_dim: int = 50, image_encoder_kwargs: dict[str, Any] | None = None,
+                 encoders: dict[str, BaseFeaturesExtractor] | None = None):
         if not isinstance(observation_space, spaces.Dict):
             raise TypeError(f"KeySubsetExtractor needs a Dict observation space, got {observation_space}")
         keys = list(observation_space.spaces) if keys is None else list(keys)
@@ -104,8 +151,11 @@ class KeySubsetExtractor(BaseFeaturesExtractor):
         total = 0
         for key in keys:
             sub = observation_space.spaces[key]
-            if is_image_space(sub, check_channels=False, normalized_image=False) and len(sub.shape) == 3:
-                extractors[key] = ImageEncoder(sub, image_features_dim)
+            if encoders and key in encoders:
+                extractors[key] = encoders[key]
+                total += encoders[key].features_dim
+            elif is_image_space(sub, check_channels=False, normalized_image=False) and len(sub.shape) == 3:
+                extractors[key] = ImageEncoder(sub, image_features_dim, **(image_encoder_kwargs or {}))
                 total += image_features_dim
             else:
                 extractors[key] = nn.Flatten()
@@ -159,7 +209,10 @@ class GaussianActor(BasePolicy):
 
     def mean_action(self, obs: th.Tensor | dict[str, th.Tensor]) -> th.Tensor:
         """Mean action ``tanh(MLP(features))``, shape (batch, act_dim)."""
-        features = self.extract_features(obs, self.features_extractor)
+        return self.mean_from_features(self.extract_features(obs, self.features_extractor))
+
+    def mean_from_features(self, features: th.Tensor) -> th.Tensor:
+        """:meth:`mean_action` from the features extractor's output."""
         return th.tanh(self.mu(self.latent_pi(features)))
 
     def mean_std(self, obs: th.Tensor | dict[str, th.Tensor]) -> tuple[th.Tensor, th.Tensor]:

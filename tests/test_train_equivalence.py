@@ -52,9 +52,12 @@ def _build(name: str):
                      demo_ratio=0.5, reward_scale=3.0, **kw)
         _online_rows(model, 100, seed=5)
         return model
-    if name == "dmfd_image":
+    if name == "dmfd_image":  # the thesis's image network, with which the reference was recorded
+        from lfd_agents.networks import THESIS_ENCODER
+
         return DMfD("CnnPolicy", ToyPickPlaceEnv(obs_mode="image"), demonstrations=demos,
-                    policy_kwargs=dict(net_arch=[32, 32]), **kw)
+                    policy_kwargs=dict(net_arch=[32, 32], share_encoder=False,
+                                       features_extractor_kwargs=THESIS_ENCODER), **kw)
     if name == "awac":
         return AWAC("MlpPolicy", ToyPickPlaceEnv(), demonstrations=demos, offline_steps=0, policy_kwargs=arch, **kw)
     if name == "sac_lfd":
