@@ -8,7 +8,7 @@ import pytest
 from benchmarks import run as bench
 
 
-@pytest.mark.parametrize("name", ["repro-mopa", "repro-mail", "repro-nist", "repro-cpu-v1"])
+@pytest.mark.parametrize("name", ["repro-mopa", "repro-mail", "repro-nist", "repro-cpu-v1", "repro-image"])
 def test_repro_suites_load_with_notes_and_seeds(name):
     suite = bench.load_suite(name)
     assert "Cuts relative to the thesis" in suite["notes"] and suite["seeds"] == [0, 1, 2]

@@ -70,7 +70,7 @@ def test_every_agent_and_env_of_every_suite_runs(tmp_path, one_torch_thread):
         cell = r["cell"]
         assert len(r["final_normalized_performance"]) == 1
         assert {"env_steps", "gradient_updates", "demo_transitions"} <= set(r)
-        if cell["agent"] in ("sac", "td3", "ppo", "dmfd", "sac_lfd", "awac", "mopa_sac"):
+        if cell["agent"] in ("sac", "td3", "ppo", "dmfd", "sac_lfd", "awac", "mopa_sac", "drq", "curl"):
             assert r["env_steps"] > 0 and r["gradient_updates"] > 0, (f, r["env_steps"], r["gradient_updates"])
         if cell["agent"] in ("bc", "nist_bc", "nist_bc_h6", "nist_bc_1cam"):
             assert r["env_steps"] == 0 and r["gradient_updates"] > 0 and r["demo_transitions"] > 0, f
