@@ -25,7 +25,7 @@ TINY_AGENT_KWARGS: dict[str, dict[str, Any]] = {
     "bc": {"demo_episodes": 1, "n_epochs": 1, "batch_size": 4},
     "drq": {"learning_starts": 1, "batch_size": 4, "buffer_size": 1000},
     "curl": {"learning_starts": 1, "batch_size": 4, "buffer_size": 1000},
-    "mopa_sac": {"learning_starts": 0, "batch_size": 4, "buffer_size": 1000},
+    "mopa_sac": {"learning_starts": 0, "warmup_stored": 0, "batch_size": 4, "buffer_size": 1000},
     "mail": {"teacher_episodes": 1, "population": 4, "simulator_worlds": 4, "random_transitions": 8,
              "dynamics_epochs": 1, "batch_size": 4, "buffer_size": 1000},
     "nist_bc": {"n_demos": 1, "batch_size": 2},

@@ -24,7 +24,7 @@ LEARNERS = {
     "sac_lfd": {"demo_episodes": 2, "learning_starts": 0, "policy_kwargs": {"net_arch": [32, 32]}, **SMALL},
     "bc": {"demo_episodes": 2, "default_updates": 40, **SMALL},
     "sac": {"learning_starts": 10, "policy_kwargs": {"net_arch": [32, 32]}, **SMALL},
-    "mopa_sac": {"learning_starts": 10, **SMALL},
+    "mopa_sac": {"learning_starts": 10, "warmup_stored": 20, **SMALL},
 }
 
 
