@@ -226,9 +226,16 @@ def test_bc_from_images_fits_the_demonstrated_actions_far_better_than_their_mean
 
 # ------------------------------------------------------------------------------ plain SB3
 @pytest.mark.parametrize("algo", ["SAC", "PPO"])
-def test_plain_sb3_cnn_policy_runs_on_the_default_image_env(algo):
+def test_plain_sb3_cnn_policy_runs_on_the_default_image_env_as_the_readme_shows(algo):
+    """The README's one line (``policy_kwargs=dict(features_extractor_class=ImageEncoder)``), run
+    with a small buffer and a few steps."""
+    from pathlib import Path
+
     import stable_baselines3 as sb3
 
+    readme = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    assert 'SAC("CnnPolicy", env, policy_kwargs=dict(features_extractor_class=ImageEncoder))' in readme
+    assert 'gym.make("lfd_envs:ClothFoldDiagonal-v0")' in readme
     env = gym.make("lfd_envs:ClothFoldDiagonal-v0", max_episode_steps=8)
     assert env.observation_space.shape == (32, 32, 3)
     kwargs = dict(learning_starts=4, batch_size=4, buffer_size=100) if algo == "SAC" else dict(n_steps=8,
@@ -238,3 +245,16 @@ def test_plain_sb3_cnn_policy_runs_on_the_default_image_env(algo):
     model.learn(8)
     obs, _ = env.reset(seed=0)
     assert env.action_space.contains(model.predict(obs, deterministic=True)[0])
+
+
+def test_train_speed_image_rows_compare_each_update_with_its_state_counterpart(one_torch_thread):
+    from benchmarks.train_speed import agent_rows
+
+    rows = agent_rows("ClothFold-v0", widths=[32], agents=[], image_agents=["drq"], rounds=1,
+                      updates=10, learn_steps=10, batch_size=16, buffer_rows=200, matmul_floor=False)
+    by = {(r["agent"], r["obs"]): r for r in rows}
+    assert set(by) == {("SAC-LfD", "state"), ("DrQ", "image")}  # DrQ runs SAC-LfD's update machinery
+    image, state = by[("DrQ", "image")], by[("SAC-LfD", "state")]
+    assert image["vs_state"] == pytest.approx(state["updates_per_cpu_s"] / image["updates_per_cpu_s"], rel=0.05)
+    assert image["vs_state"] > 1  # encoding 32x32 images costs more than a 32-wide state MLP
+    assert state["vs_state"] is None
