@@ -173,7 +173,14 @@ def main(argv: list[str] | None = None) -> None:
                    help="sb3: --learning-starts and --update-per-stored; mopa-rl: MoPA-RL's warm-up, updates, timeouts")
     p.add_argument("--planner", choices=("suite", "mopa-rl"), default="suite",
                    help="suite: the task's MOPA_DEFAULTS; mopa-rl: 1 s per OMPL query, no check budget")
+    p.add_argument("--threads", type=int, default=None,
+                   help="torch CPU threads (default: torch's; --speed: 1, as the harness runs a cell)")
     args = p.parse_args(argv)
+    threads = args.threads or (1 if args.speed else None)
+    if threads:
+        import torch as th
+
+        th.set_num_threads(threads)
     t0 = time.perf_counter()
     if args.speed:
         steps = args.steps or 5000

@@ -104,3 +104,22 @@ def test_mopa_agent_seeds_its_planners():
     assert agent._eval.planner.seed == 5
     custom = MoPAAgent(env, seed=5, wrapper_kwargs={"planner_kwargs": {"seed": 9}})
     assert custom.train_env.planner.seed == 9
+
+
+def test_a_query_does_not_depend_on_the_planners_earlier_queries():
+    """The second query of two planners with the same seed gives the same path and the same
+    number of validity checks although their first queries differed: every random object of a
+    query is made after that query's seed."""
+    from lfd_envs.mujoco.ompl_planner import OMPLPlanner
+
+    second = []
+    for first_goal in ((0.6, 0.0), (0.6, -0.5)):
+        planner = OMPLPlanner(wall_valid, LIMITS, dq_step=0.05, range=0.2, time_limit=5.0, max_checks=3000, seed=4)
+        first = planner.plan(np.array([-0.6, 0.3]), np.array(first_goal))
+        assert first.used_planner
+        result = planner.plan(np.array([-0.5, -0.3]), np.array([0.7, 0.3]))
+        assert result.status == "planner", result.status
+        second.append((result.path, result.extra["checks"]))
+        planner.close()
+    np.testing.assert_array_equal(second[0][0], second[1][0])
+    assert second[0][1] == second[1][1]

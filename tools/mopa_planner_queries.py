@@ -10,6 +10,9 @@ query order) and prints the success rate, the total and per-query planning time,
 percentiles of the successful queries' solve times and validity-check counts. ``--max-checks``
 replays with a check budget (one row per budget, ``0`` for none) and ``--no-snapshot`` with
 the live-state validity check of every configuration (the planner before the scene snapshot).
+``python tools/mopa_planner_queries.py compare Q.pkl`` replays every query with MoPA-RL's
+settings (1 s, no budget, no snapshot) and with the task's ``MOPA_DEFAULTS``, one after the
+other, so both see the same machine load, and prints both rows.
 """
 
 from __future__ import annotations
@@ -106,6 +109,37 @@ def replay(queries: list[dict[str, Any]], time_limit: float, seed: int = 0, env_
             if (~ok_a).any() else 0}
 
 
+def compare(queries: list[dict[str, Any]], seed: int = 0, env_id: str = "Push2DObstacle-v0"
+            ) -> list[dict[str, Any]]:
+    """MoPA-RL's planner settings against the task's defaults, query by query (module docstring)."""
+    import gymnasium as gym
+
+    import lfd_envs  # noqa: F401
+    from benchmarks.mopa_modes import MOPA_RL_PLANNER
+    from lfd_agents.mopa import make_mopa_env
+
+    old = dict(MOPA_RL_PLANNER, planner_kwargs={**MOPA_RL_PLANNER["planner_kwargs"], "seed": seed})
+    wrappers = {"mopa-rl": make_mopa_env(gym.make(env_id), **old),
+                "suite": make_mopa_env(gym.make(env_id), planner_kwargs={"seed": seed})}
+    rec: dict[str, dict[str, list]] = {name: {"t": [], "ok": []} for name in wrappers}
+    for w in wrappers.values():
+        w.reset(seed=0)
+    for q in queries:
+        for name, w in wrappers.items():
+            w.unwrapped.set_state(q["state"])
+            t0 = time.perf_counter()
+            ok = w.planner.plan(q["start"], q["goal"]).success
+            rec[name]["t"].append(time.perf_counter() - t0)
+            rec[name]["ok"].append(ok)
+    rows = []
+    for name, r in rec.items():
+        t, ok = np.array(r["t"]), np.array(r["ok"])
+        rows.append({"planner": name, "queries": len(t), "success_rate": round(float(ok.mean()), 4),
+                     "total_s": round(float(t.sum()), 2), "failed_s": round(float(t[~ok].sum()), 2),
+                     "solved_median_s": round(float(np.median(t[ok])), 4) if ok.any() else None})
+    return rows
+
+
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     sub = p.add_subparsers(dest="cmd", required=True)
@@ -120,7 +154,21 @@ def main(argv: list[str] | None = None) -> None:
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--max-checks", type=int, nargs="+", default=[0], help="check budgets (0: none)")
     r.add_argument("--no-snapshot", action="store_true", help="check every configuration against the live state")
+    cmp = sub.add_parser("compare")
+    cmp.add_argument("path")
+    cmp.add_argument("--seed", type=int, default=0)
     args = p.parse_args(argv)
+    if args.cmd == "compare":
+        import os
+
+        with open(args.path, "rb") as f:
+            qs = pickle.load(f)
+        load = os.getloadavg()[0]
+        rows = compare(qs, args.seed)
+        print(f"load average {load:.2f} -> {os.getloadavg()[0]:.2f}")
+        for row in rows:
+            print(row)
+        return
     if args.cmd == "collect":
         qs = collect(args.source, args.queries, args.seed, out_path=args.out)
         with open(args.out, "wb") as f:
