@@ -115,6 +115,37 @@ def test_grasp_in_descent_has_no_motionless_grasp_step_and_still_holds(env_id, d
     assert _episode(env, make_expert(env, grasp_in_descent=True, **speeds), 0) > 0.9
 
 
+def _grasp_height_and_score(env, expert, variant):
+    """Lowest picker height in the step whose flag makes the first grasp, and the final p̂."""
+    base = env.unwrapped
+    obs, _ = env.reset(seed=0, options={"variant": variant, "split": "eval"})
+    expert.reset()
+    height, done, info = None, False, {}
+    while not done:
+        before = base.picker_positions[:, 2].min()
+        obs, _, terminated, truncated, info = env.step(expert.predict(obs)[0])
+        if height is None and (base.held_particles > 0).any():
+            height = float(before)
+        done = terminated or truncated
+    return height, info["normalized_performance"]
+
+
+def test_pressing_expert_grasps_at_the_clip_height_and_folds_as_well():
+    """``press``: the colliding picker goes down to the workspace's clip height (its radius above
+    the table), below where it would rest on the cloth, grasps there, and still folds as well."""
+    env = gym.make("ClothFoldDiagonalPinned-v1", obs_mode="state", action_mode="delta")
+    base = env.unwrapped
+    clip = base.batch.workspace.lo[2] + base.batch.workspace.margin
+    resting = clip + 2 * base.batch.sim.params.particle_radius  # on top of the flat cloth
+    speeds = {"hold_speed": 0.5, "free_speed": 0.5}
+    for variant in (0, 2):
+        rest_z, rest_score = _grasp_height_and_score(env, make_expert(env, **speeds), variant)
+        press_z, press_score = _grasp_height_and_score(env, make_expert(env, press=True, **speeds), variant)
+        assert rest_z == pytest.approx(resting, abs=1e-3)
+        assert press_z == pytest.approx(clip, abs=1e-4)
+        assert press_score >= rest_score - 0.02 and press_score > 0.9, (variant, press_score, rest_score)
+
+
 def test_v1_rope_pick_place_expert_holds_both_ends_through_the_carry():
     """With colliding pickers a pick at the table pushed the rope's end out of the picker's
     reach before the grasp (eval variant 0: nothing held, both ends shoved 8 cm); the rope expert

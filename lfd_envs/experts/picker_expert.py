@@ -91,6 +91,18 @@ class PickerExpert:
             demonstrations are harder to imitate, not easier: a policy that turns the flag on a
             little early holds nothing (or a particle beside the pick point) and still lifts
             (``repro-cpu-v1``'s grasp-on-arrival cell: BC 0.04 against 0.86).
+        press: delta mode, ``flex_like`` physics: the descent (with ``direct_approach``: the
+            approach) goes down to the pick point at the table, which the workspace clips to the
+            picker's radius above it, instead of stopping where the picker rests on top of the
+            particles; the grasp happens at that lowest height. On the cloth tasks the particle
+            under the picker is then well inside the grasp radius (it is within it up to about
+            1.7 cm above the clip height, only 0.5 cm above the resting height), so a descent
+            imitated a little short still ends within reach, and one imitated too long is
+            clipped. Holding its particle one particle diameter closer than a resting picker, it
+            lowers it that much less (pressed down to the clip height over the layer below, it
+            squeezes that layer and the released particle pops). Not for the rope: a picker
+            pressed down squeezes the thin rope out of its reach. Without colliding pickers
+            every descent already ends at the clip height.
     """
 
     #: delta mode: keep re-aiming the place point at the live target during the lift and the
@@ -105,7 +117,8 @@ class PickerExpert:
     pick_place_on_top: bool = False
 
     def __init__(self, env: Any, hold_speed: float = 0.6, tolerance: float = 1e-3, max_phase_steps: int = 80,
-                 direct_approach: bool = False, free_speed: float = 1.0, grasp_in_descent: bool = False) -> None:
+                 direct_approach: bool = False, free_speed: float = 1.0, grasp_in_descent: bool = False,
+                 press: bool = False) -> None:
         for name, speed in (("hold_speed", hold_speed), ("free_speed", free_speed)):
             if not 0.0 < float(speed) <= 1.0:
                 raise ValueError(f"{name} must be in (0, 1] (a fraction of the maximum delta speed), got {speed!r}")
@@ -126,6 +139,7 @@ class PickerExpert:
         self.max_phase_steps = int(max_phase_steps)
         self.direct_approach = bool(direct_approach)
         self.grasp_in_descent = bool(grasp_in_descent)
+        self.press = bool(press)
         self._episodes = EpisodeTracker(env)
         self.reset()
 
@@ -236,8 +250,11 @@ class PickerExpert:
         ws, s = self.workspace, self.schedule
         top = ws.hi[2] - ws.margin
         pick, place = ws.clip(move.pick), ws.clip(move.place)
-        if self._flex_like and name in ("approach", "descend"):  # before the grasp only
+        if self._flex_like and name in ("approach", "descend") and not self._presses(name):  # before the grasp
             pick = ws.clip(self._resting_on_top(pick))
+        if self._flex_like and self.press and name == "lower":
+            place = place.copy()
+            place[:, 2] += 2.0 * self.base.batch.sim.params.particle_radius
         wpt = s.waypoints(pick, place, top)
         approach = pick if self.direct_approach else wpt["above_pick"]
         target = {"approach": approach, "descend": pick, "lift": wpt["lifted"],
@@ -315,6 +332,10 @@ class PickerExpert:
         self._issued = True
         self._sent = np.stack([cur, cur + action[:, :3] * reach])
         return action.ravel()
+
+    def _presses(self, name: str) -> bool:
+        """Phase ``name`` is the one that reaches the pick point and ``press`` is on."""
+        return self.press and (name == "descend" or (name == "approach" and self.direct_approach))
 
     def _grasps_on_arrival(self, name: str) -> bool:
         """Phase ``name`` is the one that reaches the pick point and ``grasp_in_descent`` is on."""
