@@ -49,9 +49,9 @@ from torch import nn
 
 from lfd_agents.augment import augment_observations, image_keys
 from lfd_agents.demos import episodes_with_states, fill_replay_buffer, load_episodes
-from lfd_agents.networks import (DetachedExtractor, DictPolicyDefaults, EnsembleCritic, GaussianActor,
-                                 ImagePolicyDefaults, KeySubsetExtractor, fast_optimizer_kwargs, frozen,
-                                 normal_log_prob, own_parameters, polyak_update_, q_values)
+from lfd_agents.networks import (DictPolicyDefaults, EnsembleCritic, GaussianActor, ImagePolicyDefaults,
+                                 KeySubsetExtractor, fast_optimizer_kwargs, frozen, normal_log_prob, polyak_update_,
+                                 q_values)
 from lfd_agents.rsi import ReferenceStateInit
 
 DEFAULT_NET_ARCH = (1024, 1024)
@@ -215,10 +215,15 @@ class DMfDPolicy(BasePolicy):
             ``"image"`` when the observation also has other keys (asymmetric actor-critic); the
             critics always see every key.
         actor_weight_decay: Adam weight decay of the actor (1e-4 in DMfD).
-        share_encoder: the actor reads the critic's image encoder without gradient (SAC-AE/DrQ)
-            instead of training its own (DMfD); ``"auto"``: shared when there are images. Only
-            the critic's loss then trains the encoder, and an update runs the encoder about half
-            as often. ``share_encoder=False`` with ``features_extractor_kwargs=THESIS_ENCODER``
+        share_encoder: actor and critic read one image encoder instead of one each (DMfD);
+            ``"auto"``: shared when there are images. An update then encodes the batch's
+            observations once, for both losses, and takes one backward pass through the encoder
+            for their sum (the critic's optimiser steps the encoder, the actor's the rest of the
+            actor), so the actor's loss is that of the critic before its step, not after.
+            Both losses train the encoder: stopping the actor's gradient, as SAC-AE and DrQ do,
+            leaves the imitation term without a say in it, and on the toy pick-and-place the
+            offline actor then fits the demonstrations several times worse.
+            ``share_encoder=False`` with ``features_extractor_kwargs=THESIS_ENCODER``
             (:mod:`lfd_agents.networks`) is the thesis's image network.
         n_critics: number of Q networks (2).
         log_std_bounds: bounds of the state-independent log-std.
@@ -268,13 +273,13 @@ class DMfDPolicy(BasePolicy):
 
     def _shared_extractor(self, critic_fe: BaseFeaturesExtractor) -> BaseFeaturesExtractor:
         """The actor's view of the critic's encoder: its ``actor_keys`` (all when None), images
-        through the critic's image encoders without gradient."""
+        through the critic's image encoders."""
         if self.actor_keys is None:
-            return DetachedExtractor(critic_fe)
+            return critic_fe
         if not isinstance(critic_fe, KeySubsetExtractor):
             raise ValueError("share_encoder with actor_keys needs features_extractor_class=KeySubsetExtractor")
         images = set(image_keys(self.observation_space))
-        encoders = {k: DetachedExtractor(critic_fe.extractors[k]) for k in self.actor_keys if k in images}
+        encoders = {k: critic_fe.extractors[k] for k in self.actor_keys if k in images}
         return KeySubsetExtractor(self.observation_space, keys=self.actor_keys, encoders=encoders)
 
     def _build(self, lr_schedule: Schedule) -> None:
@@ -288,7 +293,9 @@ class DMfDPolicy(BasePolicy):
                                    self.log_std_bounds)
         opt_kwargs = fast_optimizer_kwargs(self.optimizer_class, self.optimizer_kwargs)
         actor_kwargs = {**opt_kwargs, "weight_decay": self.actor_weight_decay}
-        self.actor.optimizer = self.optimizer_class(own_parameters(self.actor), lr=lr_schedule(1), **actor_kwargs)
+        encoder = {id(p) for p in critic.features_extractor.parameters()} if self.share_encoder else set()
+        actor_params = [p for p in self.actor.parameters() if id(p) not in encoder]  # the critic's optimiser has them
+        self.actor.optimizer = self.optimizer_class(actor_params, lr=lr_schedule(1), **actor_kwargs)
         self.critic = critic if self.share_encoder else self._make_critic()
         self.critic_target = self._make_critic()
         self.critic_target.load_state_dict(self.critic.state_dict())
@@ -560,7 +567,7 @@ class DMfD(OffPolicyAlgorithm):
     def _min_q(self, critic: EnsembleCritic | ContinuousCritic, obs: Any, actions: th.Tensor) -> th.Tensor:
         return q_values(critic, obs, actions).min(dim=0).values
 
-    def critic_loss(self, data: ReplayBufferSamples) -> dict[str, th.Tensor]:
+    def critic_loss(self, data: ReplayBufferSamples, features: th.Tensor | None = None) -> dict[str, th.Tensor]:
         """Sum over critics of MSE(Q_i(s, a_B), y); returns ``loss``, ``target`` and ``q`` (batch, n_critics)."""
         with th.no_grad():
             mean, std = self.actor.mean_std(data.next_observations)
@@ -569,11 +576,12 @@ class DMfD(OffPolicyAlgorithm):
             next_logp = normal_log_prob(next_actions, mean, std) if self.target_ent_coef else th.zeros_like(next_q)
             target = td_target(self.reward_scale * data.rewards.flatten(), data.dones.flatten(), next_q, next_logp,
                                gamma=self.gamma, target_ent_coef=self.target_ent_coef)
-        q = q_values(self.critic, data.observations, data.actions)
+        q = q_values(self.critic, data.observations, data.actions) if features is None \
+            else self.critic.q_from_features(features, data.actions)
         loss = F.mse_loss(q, target.expand_as(q), reduction="none").mean(dim=1).sum()
         return {"loss": loss, "target": target, "q": q.detach().t()}
 
-    def actor_loss(self, data: ReplayBufferSamples) -> dict[str, th.Tensor]:
+    def actor_loss(self, data: ReplayBufferSamples, features: th.Tensor | None = None) -> dict[str, th.Tensor]:
         """DMfD actor loss on a batch (see :func:`dmfd_actor_loss`).
 
         The critic's parameters take no gradient from it (the actor's optimiser ignores them),
@@ -581,12 +589,12 @@ class DMfD(OffPolicyAlgorithm):
         multiplied by 0, is evaluated without a graph.
         """
         critic = self.critic
-        fe = self.actor.features_extractor
-        shared = isinstance(fe, DetachedExtractor) and fe.encoder is critic.features_extractor
-        if shared:  # the actor reads the critic's encoder: encode the observations once for both
-            with th.no_grad():
+        shared = self.actor.features_extractor is critic.features_extractor
+        if shared:  # one encoder for actor and critic: encode the observations once for both
+            if features is None:
                 features = critic.features(data.observations)
             mean, std = self.actor.mean_from_features(features), self.actor.log_std().exp()
+            features = features.detach()
         else:
             mean, std = self.actor.mean_std(data.observations)
         with frozen(critic), th.set_grad_enabled(th.is_grad_enabled() and self.entropy_weight > 0):
@@ -618,16 +626,26 @@ class DMfD(OffPolicyAlgorithm):
         critic_params = list(self.critic.parameters())
         target_params = list(self.critic_target.parameters())
         logs: list[th.Tensor] = []  # one small tensor per update, read once at the end (no per-update .item())
+        joint = self.actor.features_extractor is self.critic.features_extractor
         for _ in range(gradient_steps):
             data = self.augment_batch(self.sample_batch(batch_size))
-            critic = self.critic_loss(data)
-            self.critic.optimizer.zero_grad(set_to_none=True)
-            critic["loss"].backward()
-            self.critic.optimizer.step()
-            actor = self.actor_loss(data)
-            self.actor.optimizer.zero_grad(set_to_none=True)
-            actor["loss"].backward()
-            self.actor.optimizer.step()
+            if joint:  # one encoder: one forward and one backward pass through it for both losses
+                features = self.critic.features(data.observations)
+                critic, actor = self.critic_loss(data, features), self.actor_loss(data, features)
+                self.critic.optimizer.zero_grad(set_to_none=True)
+                self.actor.optimizer.zero_grad(set_to_none=True)
+                (critic["loss"] + actor["loss"]).backward()
+                self.critic.optimizer.step()
+                self.actor.optimizer.step()
+            else:
+                critic = self.critic_loss(data)
+                self.critic.optimizer.zero_grad(set_to_none=True)
+                critic["loss"].backward()
+                self.critic.optimizer.step()
+                actor = self.actor_loss(data)
+                self.actor.optimizer.zero_grad(set_to_none=True)
+                actor["loss"].backward()
+                self.actor.optimizer.step()
             polyak_update_(critic_params, target_params, self.tau)
             logs.append(th.stack([critic["loss"].detach(), actor["loss"].detach(), actor["awr_loss"].detach(),
                                   actor["entropy_loss"].detach(), actor["weights"].max()]))

@@ -179,12 +179,9 @@ def test_dmfd_image_path_asymmetric_critic_shared_encoder_and_thesis_option():
     assert model.rsi_prob == 0.3 and model._aug_keys == ["image"] and model.aug_pad == 2
     actor_fe, critic_fe = model.actor.features_extractor, model.critic.features_extractor
     assert actor_fe.keys == ["image"] and critic_fe.keys == ["image", "state"]  # actor on image, critic on both
-    assert actor_fe.extractors["image"].encoder is critic_fe.extractors["image"]  # one encoder ...
+    assert actor_fe.extractors["image"] is critic_fe.extractors["image"]  # one encoder
     encoder_ids = {id(p) for p in critic_fe.extractors["image"].parameters()}
     assert not encoder_ids & {id(p) for g in model.actor.optimizer.param_groups for p in g["params"]}
-    data = model.augment_batch(model.sample_batch(8))
-    model.actor_loss(data)["loss"].backward()  # ... that only the critic's loss trains
-    assert all(p.grad is None for p in critic_fe.extractors["image"].parameters())
     model.learn(10)
     thesis = DMfD("MultiInputPolicy", env, demonstrations=eps, buffer_size=500, batch_size=8, seed=0,
                   policy_kwargs=dict(tiny(), share_encoder=False,
@@ -195,20 +192,38 @@ def test_dmfd_image_path_asymmetric_critic_shared_encoder_and_thesis_option():
     thesis.learn(10)
 
 
-def test_dmfd_shared_encoder_loss_equals_separate_computation():
-    """Encoding the observations once for actor and critic gives the actor loss of encoding twice."""
+def test_dmfd_shared_encoder_is_trained_by_both_losses_and_the_heads_by_their_own():
     eps = collect_episodes(2, obs_mode="image")
     model = DMfD("CnnPolicy", ToyPickPlaceEnv(obs_mode="image"), demonstrations=eps, buffer_size=500, batch_size=8,
                  policy_kwargs=tiny(), seed=0)
+    assert model.actor.features_extractor is model.critic.features_extractor
     data = model.augment_batch(model.sample_batch(8))
-    th.manual_seed(1)
-    fast = model.actor_loss(data)["loss"]
-    fe = model.actor.features_extractor
-    model.actor.features_extractor = DetachedExtractor(fe.encoder)  # same encoder, not recognised as shared
-    th.manual_seed(1)
-    slow = model.actor_loss(data)["loss"]
-    model.actor.features_extractor = fe
-    th.testing.assert_close(fast, slow)
+    features = model.critic.features(data.observations)
+    critic, actor = model.critic_loss(data, features), model.actor_loss(data, features)
+    encoder = list(model.critic.features_extractor.parameters())
+    heads = [p for n, p in model.critic.named_parameters() if not n.startswith("features_extractor.")]
+    for loss in (critic["loss"], actor["loss"]):
+        assert all(g.abs().sum() > 0 for g in th.autograd.grad(loss, encoder, retain_graph=True))
+    assert all(g is None for g in th.autograd.grad(actor["loss"], heads, retain_graph=True, allow_unused=True))
+    # the losses from shared features are those of encoding the batch separately for each
+    for loss in (model.critic_loss, model.actor_loss):
+        th.manual_seed(2)
+        shared = loss(data, features)["loss"]
+        th.manual_seed(2)
+        th.testing.assert_close(shared, loss(data)["loss"])
+
+
+def test_dmfd_image_actor_fits_its_demonstrations_with_the_default_network():
+    """Offline phase only: the lean shared encoder, trained by both losses, lets the actor imitate
+    the demonstrations' actions far better than their mean action."""
+    demos = collect_episodes(10, obs_mode="image")
+    obs = np.concatenate([e["observations"][:-1] for e in demos])
+    actions = np.concatenate([e["actions"] for e in demos])
+    model = DMfD("CnnPolicy", ToyPickPlaceEnv(obs_mode="image"), demonstrations=demos, offline_steps=300,
+                 batch_size=64, learning_rate=1e-3, buffer_size=1000, seed=0, policy_kwargs=dict(net_arch=[64, 64]))
+    model.learn(1)
+    error = ((model.predict(obs, deterministic=True)[0] - actions) ** 2).mean()
+    assert error < 0.1 * ((actions.mean(axis=0) - actions) ** 2).mean()
 
 
 def test_bc_from_images_fits_the_demonstrated_actions_far_better_than_their_mean():
