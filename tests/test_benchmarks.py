@@ -585,3 +585,22 @@ def test_performance_profile_figure_has_a_title():
     fig = profiles_figure({"dmfd": np.linspace(1, 0, 5)}, {"dmfd": np.stack([np.linspace(0.9, 0, 5),
                                                                           np.linspace(1, 0.1, 5)])}, taus)
     assert fig.axes[0].get_title() == PROFILES_TITLE
+
+
+def test_committed_leaderboard_is_a_page_a_reader_can_use():
+    """``leaderboard.md`` holds one short section per suite with committed results (its headline
+    table), every other cell on the suite's appendix page, and no line too long to read; configs hold
+    settings, so no suite or cell note runs to an investigation."""
+    root = README.parent
+    board = (root / "leaderboard.md").read_text()
+    lines = board.splitlines()
+    assert len(lines) <= 400 and max(map(len, lines)) <= 600
+    for results in sorted(p for p in (root / "benchmarks" / "results").iterdir()
+                          if p.is_dir() and not p.name.startswith("_")):
+        assert f"<!-- leaderboard:suite={results.name} -->" in board, results.name
+        page = root / "docs" / "results" / f"{results.name}.md"
+        assert f"(docs/results/{results.name}.md)" in board and page.exists()
+        suite = bench.load_suite(results.name)
+        assert suite.get("budget_cut"), results.name
+        for notes in [suite.get("notes", "")] + [c.get("notes", "") for c in suite["cells"]]:
+            assert len(notes) <= 800, (results.name, notes[:80])
