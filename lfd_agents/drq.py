@@ -4,7 +4,8 @@ SAC with one encoder for actor and critic (trained by the critic only) and rando
 ±``aug_pad`` pixels (replicate-pad and crop back): the critic's target is averaged over K
 shifts of the next observation and its loss over M shifts of the observation (K = M = 2):
 
-    y = 1/K Σ_k [r + γ(1 − d)(min_i Q'_i(aug_k(s'), a'_k) − α log π(a'_k | aug_k(s')))],  a'_k ~ π(·|aug_k(s'))
+    y = 1/K Σ_k [r + γ(1 − d)(min_i Q'_i(aug_k(s'), a'_k) − α log π(a'_k | aug_k(s')))]
+        with a'_k ~ π(·|aug_k(s'))
     L_Q = 1/M Σ_m ½ Σ_i (Q_i(aug_m(s), a) − y)²
 
 The update machinery is :class:`lfd_agents.image_sac.ImageSAC`'s.
