@@ -36,11 +36,12 @@ from lfd_agents.mopa.wrapper import MoPAWrapper
 __all__ = ["MoPASAC", "MoPATD3", "MoPAReplayBuffer", "MOPA_DEFAULTS", "MOPA_RL_SCHEDULE", "make_mopa_env",
            "mopa_agent_kwargs", "smdp_targets"]
 
-#: Validity checks one OMPL search may run on Push2DObstacle (``max_checks``): 1.3x the most
-#: any successful query of a fixed, seeded set needed (31k; ``python tools/mopa_planner_queries.py``),
-#: so the success rate stays that of MoPA-RL's 1 s limit (about 60k checks on an idle core),
-#: while a query that cannot succeed (its goal in a pocket of free space cut off from the
-#: start) stops sooner, and after the same work however loaded the machine is.
+#: Validity checks one OMPL search may run on Push2DObstacle (``max_checks``): above the 36k
+#: that the hardest successful query of two fixed, seeded sets (330 queries) needed, so the
+#: success rate is that of MoPA-RL's 1 s limit (``python tools/mopa_planner_queries.py``). 1 s
+#: holds about 54k checks on a lightly loaded core and far fewer on a busy one; the budget
+#: ends a search that cannot succeed (its goal in a pocket of free space cut off from the
+#: start) after the same work on any machine.
 PUSH2D_MAX_CHECKS = 40_000
 
 #: Per-task MoPA settings (MoPA-RL scripts): ω, Δq_MP, M (reuse), reward scale, OMPL extension
