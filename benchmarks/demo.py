@@ -56,7 +56,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"[demo] wrote {len(files)} images to {IMAGES.relative_to(ROOT)} in {time.perf_counter() - t0:.0f} s")
     # --force: the committed leaderboard's cells exist already; the demo re-trains them for real
     code = run.main(["--suite", "smoke", "--force", "--leaderboard", str(ROOT / "docs" / "leaderboard-smoke.md"),
-                     "--plot-dir", str(ROOT / "docs" / "leaderboard"), *(argv or [])])
+                     "--plot-dir", str(ROOT / "docs" / "leaderboard"), "--pages-dir", str(ROOT / "docs" / "results"),
+                     *(argv or [])])
     print(f"[demo] done in {(time.perf_counter() - t0) / 60:.1f} min")
     return code
 

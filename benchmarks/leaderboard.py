@@ -142,9 +142,13 @@ def _metric_cell(runs: list[dict[str, Any]], key: str) -> str:
     return f"{v.mean():.3f} ± {v.std():.3f}"
 
 
-def by_seed(runs: list[dict[str, Any]]) -> list[list[float]]:
-    """Each seed's evaluation scores, in seed order (the runs of the interval estimates)."""
-    return [list(r["final_normalized_performance"]) for r in sorted(runs, key=lambda r: r["cell"]["seed"])]
+def by_seed(runs: list[dict[str, Any]], metric: str = "normalized_performance") -> list[list[float]]:
+    """Each seed's evaluation scores (p̂, or a reported metric such as ``is_success``), in seed order
+    (the runs of the interval estimates); ``KeyError`` if a run did not record ``metric``."""
+    ordered = sorted(runs, key=lambda r: r["cell"]["seed"])
+    if metric == "normalized_performance":
+        return [list(r["final_normalized_performance"]) for r in ordered]
+    return [list(r.get("final_metrics", {})[metric]) for r in ordered]
 
 
 def _interval(s: Any) -> str:
@@ -393,15 +397,16 @@ def _aggregate_section(table: dict[str, dict[str, list[dict[str, Any]]]], suite:
     return lines
 
 
-def _reference_means(cells: dict[str, dict[str, list[dict[str, Any]]]], suite_config: dict[str, Any] | None
-                     ) -> dict[str, dict[str, float]]:
-    """``{env label: {agent: reported mean p̂}}`` of the suite's reference rows for these cells."""
+def _reference_means(cells: dict[str, dict[str, list[dict[str, Any]]]], suite_config: dict[str, Any] | None,
+                     key: str = "mean") -> dict[str, dict[str, float]]:
+    """``{env label: {agent: reported value}}`` of the suite's reference rows for these cells (``key``:
+    ``"mean"`` for p̂, or a reported metric such as ``"is_success"``)."""
     out: dict[str, dict[str, float]] = {}
     for label, agents in cells.items():
         env_id = next(iter(agents.values()))[0]["cell"]["env_id"]
         ref = references_for(suite_config, label, env_id)
         rows = ref["rows"] if ref else {}
-        out[label] = {a: float(row["mean"]) for a, row in rows.items() if isinstance(row.get("mean"), (int, float))}
+        out[label] = {a: float(row[key]) for a, row in rows.items() if isinstance(row.get(key), (int, float))}
     return out
 
 
@@ -418,22 +423,39 @@ def _sep(head: str = HEADER) -> str:
 
 
 # ------------------------------------------------------------------------------- headline
-def _headline_value(runs: list[dict[str, Any]]) -> str:
-    """``mean [95% CI]`` of the per-seed means (seeds as runs); one seed: ``mean (1 seed)``."""
-    s = summarize(by_seed(runs))
+#: what a suite's headline table may show (``"headline_metric"``), as its caption names it
+HEADLINE_METRICS = {"normalized_performance": "Mean final p̂", "is_success": "Success rate"}
+
+
+def _reference_key(metric: str) -> str:
+    """The key of a reference row holding the thesis's value of ``metric``."""
+    return "mean" if metric == "normalized_performance" else metric
+
+
+def _headline_value(runs: list[dict[str, Any]], metric: str = "normalized_performance") -> str:
+    """``mean [95% CI]`` of the per-seed means (seeds as runs); one seed: ``mean (1 seed)``; ``—``
+    where the runs did not record ``metric``."""
+    try:
+        s = summarize(by_seed(runs, metric))
+    except KeyError:
+        return "—"
     if s.seeds < 2:
         return f"{s.mean:.3f} (1 seed)"
     return f"{s.mean:.3f} [{s.mean_ci_low:.3f}, {s.mean_ci_high:.3f}]"
 
 
-def verdicts(cells: dict[str, dict[str, list[dict[str, Any]]]], suite_config: dict[str, Any] | None) -> list[str]:
+def verdicts(cells: dict[str, dict[str, list[dict[str, Any]]]], suite_config: dict[str, Any] | None,
+             metric: str = "normalized_performance") -> list[str]:
     """One line per cell: each learner's mean beside the thesis's, met (ours ≥ thesis) or not, by how much."""
-    refs = _reference_means(cells, suite_config)
+    refs = _reference_means(cells, suite_config, _reference_key(metric))
     lines = []
     for label, agents in cells.items():
         parts = []
         for agent in sorted(a for a in agents if a in refs[label] and a not in REFERENCE_AGENTS):
-            ours = float(np.mean(_seed_scores(agents[agent])))
+            try:
+                ours = float(np.mean([np.mean(v) for v in by_seed(agents[agent], metric)]))
+            except KeyError:
+                continue
             diff = ours - refs[label][agent]
             parts.append(f"{agent} {ours:.3f} vs {refs[label][agent]:.3f}: "
                          f"{'met' if diff >= 0 else 'not met'} ({diff:+.3f})")
@@ -447,9 +469,10 @@ def render_headline(results: list[dict[str, Any]], *, suite: str, suite_config: 
     the thesis's row under each agent), a verdict per task, the budget cut and a link to ``page``
     (the appendix with every cell)."""
     config = suite_config or {}
+    metric = config.get("headline_metric", "normalized_performance")
     table = group_by_env(results)
     cells = main_cells(table)
-    refs = _reference_means(cells, suite_config)
+    refs = _reference_means(cells, suite_config, _reference_key(metric))
     marked = any(is_headline(agents) for agents in cells.values())
     lines = [f"# Suite `{suite}`", ""]
     if config.get("description"):
@@ -457,28 +480,30 @@ def render_headline(results: list[dict[str, Any]], *, suite: str, suite_config: 
     lines += [("Headline cells: each agent runs one recipe on every task." if marked else
                "No cell is marked headline: per env, its cell with the most agents.") +
               (f" Budget: {config['budget_cut']}" if config.get("budget_cut") else ""),
-              "", "Mean final p̂ over seeds, [95% CI] with seeds as runs; *thesis* rows: the reported mean.", ""]
+              "", f"{HEADLINE_METRICS[metric]} over seeds, [95% CI] with seeds as runs; *thesis* rows: the reported "
+              "value.", ""]
     head = "| agent | " + " | ".join(cells) + " |"
     lines += [head, _sep(head)]
     agents = sorted({a for agents in cells.values() for a in agents},
                     key=lambda a: (a != "expert", a in REFERENCE_AGENTS, a))
     for agent in agents:
         lines.append(f"| {agent} | " + " | ".join(
-            _headline_value(cells[label][agent]) if agent in cells[label] else "—" for label in cells) + " |")
+            _headline_value(cells[label][agent], metric) if agent in cells[label] else "—" for label in cells) + " |")
         if any(agent in refs[label] for label in cells):
             lines.append(f"| *thesis: {agent}* | " + " | ".join(
                 f"{refs[label][agent]:.3f}" if agent in refs[label] else "—" for label in cells) + " |")
-    lines += ["", "Against the thesis (mean of seeds vs reported mean):"] + verdicts(cells, suite_config)
+    lines += ["", "Against the thesis (mean of seeds vs reported value):"] + verdicts(cells, suite_config, metric)
     lines += ["", f"Every cell, per-seed numbers, curves and notes: [{page}]({page}). Regenerate: `{command}`."]
     return "\n".join(lines)
 
 
 def write_leaderboard(results_dir: Path, out_path: Path, *, command: str, suite: str | None = None,
                       plot_dir: Path | None = None, suite_config: dict[str, Any] | None = None,
-                      progress: bool = False) -> Path:
+                      progress: bool = False, pages_dir: Path | None = None) -> Path:
     """Regenerate the suite's section of ``out_path`` (its headline, :func:`render_headline`) and its
     appendix page ``docs/results/<suite>.md`` beside it (every cell, :func:`render_markdown`) from the
-    results of ``suite`` (all suites if None). Files are written atomically.
+    results of ``suite`` (all suites if None); ``pages_dir`` puts the appendix page elsewhere. Files are
+    written atomically.
 
     ``suite_config`` (the suite JSON) supplies reference rows and notes; when omitted the
     committed suite named ``suite`` is used if there is one.
@@ -496,7 +521,7 @@ def write_leaderboard(results_dir: Path, out_path: Path, *, command: str, suite:
     mark_headline(results, suite_config)
     out_path = Path(out_path)
     name = suite or "all"
-    page = appendix_path(out_path, name)
+    page = Path(pages_dir) / f"{safe_name(name)}.md" if pages_dir else appendix_path(out_path, name)
     plot_dir = plot_dir or out_path.parent / "docs" / "leaderboard"
     text = render_markdown(results, command=command, suite=suite, plot_dir=plot_dir, relative_to=page.parent,
                            suite_config=suite_config, progress=progress)

@@ -202,6 +202,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--out", default=str(DEFAULT_OUT), help="results folder (one JSON per cell)")
     p.add_argument("--leaderboard", default=str(ROOT / "leaderboard.md"), help="markdown file to rewrite")
     p.add_argument("--plot-dir", help="folder of the leaderboard's plots (default: docs/leaderboard beside it)")
+    p.add_argument("--pages-dir", help="folder of the suites' appendix pages (default: docs/results beside the leaderboard)")
     p.add_argument("--force", action="store_true", help="re-run finished cells")
     p.add_argument("--executor", choices=["local", "ray"], default="local",
                    help="local: this machine (see --jobs); ray: one task per cell on a Ray cluster")
@@ -263,6 +264,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         path = write_leaderboard(out, Path(args.leaderboard), command=command, suite=suite["name"], suite_config=suite,
                                  plot_dir=Path(args.plot_dir) if args.plot_dir else None,
+                                 pages_dir=Path(args.pages_dir) if args.pages_dir else None,
                                  progress=not args.no_progress)
     except ValueError as exc:  # no finished cell of this suite yet
         print(f"error: {exc}", file=sys.stderr)

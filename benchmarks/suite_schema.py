@@ -74,6 +74,8 @@ SUITE_SCHEMA: dict[str, Any] = {
         "name": {"type": "string", "minLength": 1, "message": "must be a non-empty string"},
         "description": {"type": "string", "message": "must be a string"},
         "budget_cut": {"type": "string", "message": "must be a string (one sentence: the budget against the thesis's)"},
+        "headline_metric": {"enum": ["normalized_performance", "is_success"],
+                            "message": "must be \"normalized_performance\" (p̂) or \"is_success\" (success rate)"},
         "cells": {"type": "array", "minItems": 1, "items": _CELL, "message": "must be a non-empty list of cells"},
         "reference": {"type": "object", "message": "must map env ids to {source, rows}",
                       "additionalProperties": {"type": "object", "message": "must be {source, rows}"}},

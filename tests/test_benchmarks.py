@@ -604,3 +604,26 @@ def test_committed_leaderboard_is_a_page_a_reader_can_use():
         assert suite.get("budget_cut"), results.name
         for notes in [suite.get("notes", "")] + [c.get("notes", "") for c in suite["cells"]]:
             assert len(notes) <= 800, (results.name, notes[:80])
+
+
+def test_headline_shows_success_where_the_suite_says_so():
+    """A suite whose thesis reports success rates (``"headline_metric": "is_success"``) gets them in its
+    headline table and verdicts, seeds as runs, beside the reported rate."""
+    from benchmarks.leaderboard import render_headline
+
+    def result(seed, success):
+        return {"cell": {"suite": "s", "env_id": "Push2DObstacle-v0", "agent": "mopa_sac", "seed": seed, "tags": {}},
+                "final_normalized_performance": [0.1, 0.2], "final_metrics": {"is_success": success},
+                "learning_curve": [], "train_wall_time_s": 1.0}
+
+    results = [result(0, [1.0, 1.0]), result(1, [1.0, 0.0]), result(2, [0.0, 0.0])]
+    config = {"headline_metric": "is_success", "reference": {"Push2DObstacle-v0": {
+        "source": "thesis", "rows": {"mopa_sac": {"mean": 0.9, "is_success": 0.4}}}}}
+    md = render_headline(results, suite="s", suite_config=config, command="x", page="p.md")
+    row = next(line for line in md.splitlines() if line.startswith("| mopa_sac |"))
+    assert row.startswith("| mopa_sac | 0.500 [")  # mean of the seeds' rates 1, 0.5, 0
+    assert "| *thesis: mopa_sac* | 0.400 |" in md and "mopa_sac 0.500 vs 0.400: met (+0.100)" in md
+    assert "Success rate over seeds" in md
+    plain = render_headline(results, suite="s", suite_config={**config, "headline_metric": "normalized_performance"},
+                            command="x", page="p.md")
+    assert "| mopa_sac | 0.150 [" in plain and "| *thesis: mopa_sac* | 0.900 |" in plain
