@@ -59,8 +59,8 @@ class ImageEncoder(BaseFeaturesExtractor):
 
     The default is a lean encoder: 3 conv layers of 16 channels with strides 2, 2, 1 (a 32×32
     image ends as 16×5×5 after the convolutions). ``**THESIS_ENCODER`` (``channels=32,
-    strides=(2, 1, 1, 1)``) gives the thesis's DMfD/DrQ encoder (32×9×9 from 32×32), about 8×
-    the multiply-adds; ``python -m benchmarks.train_speed --image`` measures what each costs.
+    strides=(2, 1, 1, 1)``) gives the thesis's DMfD/DrQ encoder (32×9×9 from 32×32), with an
+    order of magnitude more multiply-adds; ``python -m benchmarks.train_speed --image`` measures what each costs.
 
     Expects channel-first images (SB3 transposes channel-last image observations itself) that
     SB3 has already scaled to [0, 1].
