@@ -10,7 +10,7 @@ run and an uninterrupted one take exactly the same path. The state of a learner 
 * the filled part of the replay buffer (arrays cut to the rows written, plus its counters and
   generators) — buffers of demonstrations are rebuilt by the constructor from the same files;
 * the plain attributes: counters (``num_timesteps``, ``_n_updates``, ``_episode_num``), flags
-  (DMfD's ``_offline_done``), episode statistics, numpy generators.
+  (DMfD's ``_offline_done``), episode statistics, numpy and torch generators (augmentation shifts).
 
 What is not in it — the envs, the last observation, torch's and numpy's global generators — is
 set again by :func:`reseed` with a seed derived from the run's seed and the stop index.
@@ -125,6 +125,8 @@ def _plain_attributes(obj: Any, skip: frozenset[str] = frozenset()) -> dict[str,
             continue
         if isinstance(value, np.random.Generator):
             out[name] = ("np.random.Generator", copy.deepcopy(value.bit_generator.state))
+        elif isinstance(value, th.Generator):
+            out[name] = ("torch.Generator", value.get_state().clone())
         elif _is_plain(value):
             out[name] = copy.deepcopy(value)
     return out
@@ -134,6 +136,8 @@ def _load_plain_attributes(obj: Any, saved: dict[str, Any]) -> None:
     for name, value in saved.items():
         if isinstance(value, tuple) and len(value) == 2 and value[0] == "np.random.Generator":
             getattr(obj, name).bit_generator.state = copy.deepcopy(value[1])
+        elif isinstance(value, tuple) and len(value) == 2 and value[0] == "torch.Generator":
+            getattr(obj, name).set_state(value[1])
         else:
             setattr(obj, name, copy.deepcopy(value))
 

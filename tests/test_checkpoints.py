@@ -195,3 +195,31 @@ def test_a_restored_learner_trains_on_exactly_as_the_original(agent, tmp_path, o
     except (ValueError, RuntimeError):  # nothing to sample from: as different as it gets
         return
     assert not all(torch.equal(expected[k], other[k]) for k in expected)
+
+
+@pytest.mark.parametrize("name,obs_mode", [("DrQ", "image"), ("CURL", "state+image")])
+def test_a_restored_image_learner_trains_on_exactly_as_the_original(name, obs_mode, one_torch_thread):
+    """The image learners' state includes their augmentation generator: the same shifted batches follow."""
+    import io
+
+    import lfd_agents
+    from dmfd_toy_env import ToyPickPlaceEnv
+    from lfd_agents.training_state import get_training_state, set_training_state
+
+    def build():
+        policy = "CnnPolicy" if obs_mode == "image" else "MultiInputPolicy"
+        return getattr(lfd_agents, name)(policy, ToyPickPlaceEnv(obs_mode=obs_mode), batch_size=8, buffer_size=200,
+                                         learning_starts=10, seed=5)
+
+    original = build()
+    original.learn(30)
+    buffer = io.BytesIO()
+    torch.save(get_training_state(original), buffer)
+    buffer.seek(0)
+    restored, unloaded = build(), build()
+    set_training_state(restored, torch.load(buffer, weights_only=False))
+    assert torch.equal(original.aug_generator.get_state(), restored.aug_generator.get_state())
+    expected, got = _gradient_steps(original), _gradient_steps(restored)
+    assert all(torch.equal(expected[k], got[k]) for k in expected)
+    with pytest.raises(ValueError):  # a learner without the state has no transitions to sample
+        _gradient_steps(unloaded)
