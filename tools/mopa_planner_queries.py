@@ -77,14 +77,16 @@ def collect(source: str = "random", queries: int = 200, seed: int = 0, env_id: s
 
 
 def replay(queries: list[dict[str, Any]], time_limit: float, seed: int = 0, env_id: str = "Push2DObstacle-v0",
-           max_checks: int | None = None, snapshot_scene: bool = True) -> dict[str, Any]:
+           max_checks: int | None = None, snapshot_scene: bool = True, motion_resolution: float | None = None
+           ) -> dict[str, Any]:
     """Success rate, timing and check counts of ``queries`` under one planner setting."""
     import gymnasium as gym
 
     import lfd_envs  # noqa: F401
     from lfd_agents.mopa import make_mopa_env
 
-    kw = {"seed": seed, "max_checks": max_checks, "snapshot_scene": snapshot_scene}
+    kw = {"seed": seed, "max_checks": max_checks, "snapshot_scene": snapshot_scene,
+          "motion_resolution": motion_resolution}
     wrapper = make_mopa_env(gym.make(env_id), time_limit=time_limit, planner_kwargs=kw)
     wrapper.reset(seed=0)
     base, planner = wrapper.unwrapped, wrapper.planner
@@ -102,6 +104,7 @@ def replay(queries: list[dict[str, Any]], time_limit: float, seed: int = 0, env_
         return {f"p{p}": round(float(np.percentile(x, p)), digits) for p in (50, 90, 99, 100)} if len(x) else {}
 
     return {"time_limit": time_limit, "max_checks": max_checks, "snapshot_scene": snapshot_scene,
+            "motion_resolution": motion_resolution,
             "queries": len(queries), "success_rate": round(float(ok_a.mean()), 4),
             "total_s": round(float(times_a.sum()), 2), "mean_s": round(float(times_a.mean()), 4),
             "failed_s": round(float(times_a[~ok_a].sum()), 2), "solve_s": pct(times_a[ok_a], 4),
@@ -154,6 +157,7 @@ def main(argv: list[str] | None = None) -> None:
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--max-checks", type=int, nargs="+", default=[0], help="check budgets (0: none)")
     r.add_argument("--no-snapshot", action="store_true", help="check every configuration against the live state")
+    r.add_argument("--motion-resolution", type=float, default=None, help="OMPL edge-check spacing (rad, L2)")
     cmp = sub.add_parser("compare")
     cmp.add_argument("path")
     cmp.add_argument("--seed", type=int, default=0)
@@ -180,8 +184,8 @@ def main(argv: list[str] | None = None) -> None:
             qs = pickle.load(f)
         for tl in args.time_limit:
             for budget in args.max_checks:
-                print(replay(qs, tl, args.seed, max_checks=budget or None, snapshot_scene=not args.no_snapshot),
-                      flush=True)
+                print(replay(qs, tl, args.seed, max_checks=budget or None, snapshot_scene=not args.no_snapshot,
+                             motion_resolution=args.motion_resolution), flush=True)
 
 
 if __name__ == "__main__":
