@@ -159,29 +159,37 @@ def _gradient_steps(agent, seed: int = 0) -> dict:
     return {k: v.clone() for k, v in model.policy.state_dict().items()}
 
 
+def _trained_restored_and_unloaded(build, steps: int):
+    """A learner trained ``steps`` steps, a fresh one loaded with its training state (through bytes, as
+    from a checkpoint file) and a fresh one left as built."""
+    import io
+
+    from lfd_agents.training_state import get_training_state, set_training_state
+
+    original = build()
+    original.learn(steps)
+    buffer = io.BytesIO()
+    torch.save(get_training_state(original), buffer)
+    buffer.seek(0)
+    restored, unloaded = build(), build()
+    set_training_state(restored, torch.load(buffer, weights_only=False))
+    return original, restored, unloaded
+
+
 @pytest.mark.parametrize("agent", sorted(LEARNERS))
 def test_a_restored_learner_trains_on_exactly_as_the_original(agent, tmp_path, one_torch_thread):
     """What a checkpoint carries is complete: the same updates from the original learner and from a
     freshly built one loaded with its training state give the same weights (and an unloaded one not)."""
-    import io
-
     import gymnasium as gym
 
     from benchmarks.agents import resolve_agent
-    from lfd_agents.training_state import get_training_state, set_training_state
 
     kwargs = {**LEARNERS[agent], "demo_cache": str(tmp_path)} if "demo_episodes" in LEARNERS[agent] else LEARNERS[agent]
 
     def build():
         return resolve_agent(agent)(gym.make("lfd_envs:Push2DObstacle-v0"), 5, **kwargs)
 
-    original = build()
-    original.learn(40)
-    buffer = io.BytesIO()
-    torch.save(get_training_state(original), buffer)
-    buffer.seek(0)
-    restored, unloaded = build(), build()
-    set_training_state(restored, torch.load(buffer, weights_only=False))
+    original, restored, unloaded = _trained_restored_and_unloaded(build, 40)
     counters = ("num_timesteps", "_n_updates", "_episode_num", "_epochs_done", "_offline_done")
     models = [getattr(a, "model", a) for a in (original, restored)]
     for name in counters:
@@ -200,24 +208,15 @@ def test_a_restored_learner_trains_on_exactly_as_the_original(agent, tmp_path, o
 @pytest.mark.parametrize("name,obs_mode", [("DrQ", "image"), ("CURL", "state+image")])
 def test_a_restored_image_learner_trains_on_exactly_as_the_original(name, obs_mode, one_torch_thread):
     """The image learners' state includes their augmentation generator: the same shifted batches follow."""
-    import io
-
     import lfd_agents
     from dmfd_toy_env import ToyPickPlaceEnv
-    from lfd_agents.training_state import get_training_state, set_training_state
 
     def build():
         policy = "CnnPolicy" if obs_mode == "image" else "MultiInputPolicy"
         return getattr(lfd_agents, name)(policy, ToyPickPlaceEnv(obs_mode=obs_mode), batch_size=8, buffer_size=200,
                                          learning_starts=10, seed=5)
 
-    original = build()
-    original.learn(30)
-    buffer = io.BytesIO()
-    torch.save(get_training_state(original), buffer)
-    buffer.seek(0)
-    restored, unloaded = build(), build()
-    set_training_state(restored, torch.load(buffer, weights_only=False))
+    original, restored, unloaded = _trained_restored_and_unloaded(build, 30)
     assert torch.equal(original.aug_generator.get_state(), restored.aug_generator.get_state())
     expected, got = _gradient_steps(original), _gradient_steps(restored)
     assert all(torch.equal(expected[k], got[k]) for k in expected)
