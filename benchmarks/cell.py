@@ -206,7 +206,7 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None,
     from benchmarks.agents import resolve_agent
     from benchmarks.budget import spent
     from benchmarks.checkpoints import CheckpointStore
-    from lfd_agents.training_state import get_training_state, reseed, set_training_state, supports_training_state
+    from lfd_agents.training_state import supports_training_state
 
     module = cell.env_id.rpartition(":")[0]
     if module:
@@ -228,7 +228,7 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None,
     curve: list[dict[str, float]] = saved["curve"] if saved else []
     done_steps, first, earlier = (saved["steps"], saved["stop"] + 1, saved["train_time"]) if saved else (0, 0, 0.0)
     if saved:
-        _restore(run, saved, first, cell.seed, set_training_state, reseed)
+        _restore(run, saved, first, cell.seed)
     curve_episodes = max(1, min(cell.eval_episodes, 5))
     first_steps, started = done_steps, time.time()
     bar = tqdm(total=cell.budget, initial=done_steps, desc=f"{cell.agent}@{cell.env_id} s{cell.seed}",
@@ -248,10 +248,7 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None,
                 point["success_rate"] = float(np.mean(scores["is_success"]))
             curve.append(point)
         if resumable and k + 1 < len(stops):  # save, then go on from a learner loaded from the save
-            state = {"cell": _cell_identity(cell), "stop": k, "steps": done_steps, "curve": curve,
-                     "train_time": earlier + time.perf_counter() - t0, "env_steps": run.env.env_steps,
-                     "agent": get_training_state(run.agent),
-                     "recorder": run.recorder.get_state() if run.recorder is not None else None}
+            state = _capture(run, cell, k, done_steps, curve, earlier + time.perf_counter() - t0)
             if store is not None:  # both paths go on from what was written, so a resumed run matches
                 store.write_progress(steps=done_steps, budget=cell.budget, started=started,
                                      rate=(done_steps - first_steps) / max(time.perf_counter() - t0, 1e-9))
@@ -259,7 +256,7 @@ def run_cell(cell: Cell, progress: bool = True, demo_cache: Path | None = None,
                 state = store.load()
             run.close()
             run = _build_training(cell, factory, kwargs)
-            _restore(run, state, k + 1, cell.seed, set_training_state, reseed)
+            _restore(run, state, k + 1, cell.seed)
     bar.close()
     train_time = earlier + time.perf_counter() - t0
     t1 = time.perf_counter()
@@ -292,9 +289,21 @@ def _cell_identity(cell: Cell) -> dict[str, Any]:
     return json.loads(json.dumps({k: v for k, v in cell.__dict__.items() if k != "tags"}, default=str))
 
 
-def _restore(run: _Training, state: dict[str, Any], stop: int, seed: int, set_state: Any, reseed: Any) -> None:
-    """Load a saved training state into a freshly built ``run`` and seed what goes on after ``stop - 1``."""
-    set_state(run.agent, state["agent"])
+def _capture(run: _Training, cell: Cell, stop: int, steps: int, curve: list[dict[str, float]],
+             train_time: float) -> dict[str, Any]:
+    """What a checkpoint after stop ``stop`` holds: the learner's training state and the cell's counters."""
+    from lfd_agents.training_state import get_training_state
+
+    return {"cell": _cell_identity(cell), "stop": stop, "steps": steps, "curve": curve, "train_time": train_time,
+            "env_steps": run.env.env_steps, "agent": get_training_state(run.agent),
+            "recorder": run.recorder.get_state() if run.recorder is not None else None}
+
+
+def _restore(run: _Training, state: dict[str, Any], stop: int, seed: int) -> None:
+    """Load a :func:`_capture` into a freshly built ``run`` and seed what goes on after ``stop - 1``."""
+    from lfd_agents.training_state import reseed, set_training_state
+
+    set_training_state(run.agent, state["agent"])
     run.env.env_steps = int(state["env_steps"])
     if run.recorder is not None and state.get("recorder") is not None:
         run.recorder.set_state(state["recorder"])
