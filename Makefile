@@ -22,7 +22,7 @@ test: $(STAMP)
 	MUJOCO_GL=$${MUJOCO_GL:-egl} $(PY) -m pytest -q tests
 
 demo: $(STAMP)
-	MUJOCO_GL=$${MUJOCO_GL:-egl} $(PY) -m benchmarks.demo
+	MUJOCO_GL=$${MUJOCO_GL:-egl} $(PY) -m tools.demo
 
 clean:
 	rm -rf $(VENV)

@@ -25,7 +25,7 @@ Prints markdown tables:
 Cloth tasks run at ``--cloth-resolution`` particles per side (default 20, i.e. 400 particles,
 to fit the time budget; the task default is 40 for ClothFold, 36 for DryCloth). The transfers
 score ClothFold and DryCloth with MAIL's metrics (``metric="mail"``; DryCloth also with MAIL's
-reach past the plank) unless ``--scoring default``. ``python -m benchmarks.docs --tables mail``
+reach past the plank) unless ``--scoring default``. ``python -m tools.docs --tables mail``
 writes these tables into ``docs/mail.md``.
 """
 

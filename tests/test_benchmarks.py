@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 import lfd_envs  # noqa: F401  (registers the env ids)
-from benchmarks import run as bench
-from benchmarks.agents import resolve_agent
-from benchmarks.stats import iqm_and_mean, probability_of_improvement, summarize
+from lfd_bench import run as bench
+from lfd_bench.agents import resolve_agent
+from lfd_bench.stats import iqm_and_mean, probability_of_improvement, summarize
 
 README = Path(__file__).resolve().parent.parent / "README.md"
 
@@ -31,7 +31,7 @@ def third_party_factory(env, seed, **kwargs):
 @pytest.fixture(autouse=True)
 def fast_bootstrap(request, monkeypatch):
     """Fewer bootstrap replications in harness tests (the statistics test keeps the defaults)."""
-    from benchmarks import stats
+    from lfd_bench import stats
 
     if "stats" not in request.node.name:
         monkeypatch.setattr(stats, "REPS", 200)
@@ -127,7 +127,7 @@ def test_bad_agent_and_env_errors(tmp_path, capsys):
     with pytest.raises(ValueError, match="valid built-in agents are .*random"):
         resolve_agent("not_an_agent")
     with pytest.raises(ValueError, match="no callable"):
-        resolve_agent("benchmarks.stats:nothing_here")
+        resolve_agent("lfd_bench.stats:nothing_here")
     assert bench.main(["--suite", str(_suite(tmp_path)), "--envs", "Nope-v0", "--out", str(tmp_path)]) == 2
     assert "valid:" in capsys.readouterr().err
     with pytest.raises(ValueError, match="valid suites are"):
@@ -199,7 +199,7 @@ def test_demo_cache_under_out_rebuilt_when_broken_and_budgets_recorded(tmp_path,
         "demo_transitions"] == n
     assert not abandoned.exists()
     # the demonstration cache's Minari metadata.json files are not results
-    from benchmarks.leaderboard import write_leaderboard
+    from lfd_bench.leaderboard import write_leaderboard
 
     assert list(cache.rglob("metadata.json"))
     write_leaderboard(tmp_path / "res", tmp_path / "all.md", command="x", suite=None)
@@ -236,7 +236,7 @@ def test_corrupt_cell_json_is_named_and_rerun(tmp_path, capsys):
     assert len(json.loads(victim.read_text())["final_normalized_performance"]) == 6
     # the leaderboard step names a corrupt file instead of crashing
     victim.write_text("{")
-    from benchmarks.leaderboard import load_results
+    from lfd_bench.leaderboard import load_results
 
     assert len(load_results(tmp_path / "res", "tiny")) == 1
     assert str(victim) in capsys.readouterr().err
@@ -245,14 +245,14 @@ def test_corrupt_cell_json_is_named_and_rerun(tmp_path, capsys):
 def test_unwritable_out_refused_before_training(tmp_path, capsys, monkeypatch):
     blocker = tmp_path / "file"
     blocker.write_text("not a folder")
-    monkeypatch.setattr("benchmarks.cell.run_cell", lambda *a, **k: pytest.fail("trained despite an unwritable --out"))
+    monkeypatch.setattr("lfd_bench.cell.run_cell", lambda *a, **k: pytest.fail("trained despite an unwritable --out"))
     assert bench.main(["--suite", str(_suite(tmp_path)), "--out", str(blocker / "res"), "--no-progress",
                        "--leaderboard", str(tmp_path / "lb.md")]) == 2
     assert f"cannot write to {blocker / 'res'}" in capsys.readouterr().err
 
 
 def test_leaderboard_written_atomically(tmp_path, monkeypatch):
-    from benchmarks import leaderboard
+    from lfd_bench import leaderboard
 
     suite = _suite(tmp_path)
     args = ["--suite", str(suite), "--out", str(tmp_path / "res"), "--leaderboard", str(tmp_path / "lb.md"),
@@ -268,13 +268,13 @@ def test_leaderboard_written_atomically(tmp_path, monkeypatch):
         leaderboard.write_leaderboard(tmp_path / "res", tmp_path / "lb.md", command="x", suite="tiny")
     assert (tmp_path / "lb.md").read_text() == before
     monkeypatch.undo()
-    from benchmarks.storage import atomic_write_text
+    from lfd_bench.storage import atomic_write_text
 
     def half_written(tmp):
         tmp.write_text("half")
         raise KeyboardInterrupt
 
-    from benchmarks.storage import atomic_write
+    from lfd_bench.storage import atomic_write
 
     with pytest.raises(KeyboardInterrupt):
         atomic_write(tmp_path / "lb.md", half_written)
@@ -345,7 +345,7 @@ def test_preflight_runs_every_pair_tiny_and_names_crashes(tmp_path, capsys):
 
 
 def test_leaderboard_shows_reported_success_in_reference_rows_and_the_coverage_picture(tmp_path):
-    from benchmarks.leaderboard import render_markdown
+    from lfd_bench.leaderboard import render_markdown
 
     rng = np.random.default_rng(0)
 
@@ -372,7 +372,7 @@ def test_leaderboard_shows_reported_success_in_reference_rows_and_the_coverage_p
 
 
 def test_leaderboard_keeps_other_suites_sections():
-    from benchmarks.leaderboard import merge_suite_section
+    from lfd_bench.leaderboard import merge_suite_section
 
     doc = merge_suite_section("", "a", "# Leaderboard\n\ncommand a\n\n## Env-v0\n\n| row a1 |")
     doc = merge_suite_section(doc, "b", "# Leaderboard\n\ncommand b\n\n## Env-v0\n\n| row b |")
@@ -386,7 +386,7 @@ def test_leaderboard_keeps_other_suites_sections():
 
 
 def test_reference_rows_keyed_by_label_are_not_shown_under_other_labels_of_the_env():
-    from benchmarks.leaderboard import references_for
+    from lfd_bench.leaderboard import references_for
 
     ref = {"source": "s", "rows": {"bc": {"mean": 0.9}}}
     config = {"reference": {"E-v0 (state)": ref}}
@@ -420,11 +420,11 @@ def test_report_rewrites_the_leaderboard_from_finished_cells_and_trains_nothing(
     assert "error" in capsys.readouterr().err and not board.exists()
     assert bench.main(args + ["--agents", "random"]) == 0  # one of the two agents
     board.write_text("stale")
-    monkeypatch.setattr("benchmarks.cell.run_cell", lambda *a, **k: pytest.fail("--report trained a cell"))
+    monkeypatch.setattr("lfd_bench.cell.run_cell", lambda *a, **k: pytest.fail("--report trained a cell"))
     assert bench.main(args + ["--report"]) == 0
     text = board.read_text()
     assert "| random |" in text and "third_party_factory" not in text
-    assert "--report" not in text and f"python -m benchmarks.run --suite {suite}" in text
+    assert "--report" not in text and f"python -m lfd_bench.run --suite {suite}" in text
 
 
 def test_train_speed_matmul_floor_is_part_of_the_update_and_sets_max_vs_sac():
@@ -455,7 +455,7 @@ def test_cells_evaluate_with_sampled_actions_where_deterministic_is_false(tmp_pa
     """``"deterministic": false`` reaches the agent's predict in the evaluation; a non-bool is refused."""
     import gymnasium as gym
 
-    from benchmarks.cell import evaluate_episodes
+    from lfd_bench.cell import evaluate_episodes
 
     class Recorder:
         def __init__(self, env):
@@ -478,7 +478,7 @@ def test_cells_evaluate_with_sampled_actions_where_deterministic_is_false(tmp_pa
 
 
 def test_leaderboard_notes_come_from_the_suite_config_when_it_has_them():
-    from benchmarks.leaderboard import cell_notes
+    from lfd_bench.leaderboard import cell_notes
 
     recorded = {"zero": [{"cell": {"env_id": "Push2DObstacle-v0", "tags": {"label": "a", "notes": "old"}}}]}
     suite = {"cells": [{"env": "Push2DObstacle-v0", "label": "a", "notes": "new"},
@@ -492,7 +492,7 @@ def test_leaderboard_notes_come_from_the_suite_config_when_it_has_them():
 def test_aggregate_compares_agents_on_each_envs_main_cell():
     """Ablation cells that run a few agents do not shrink the across-environment comparison to the
     agents they share: per env id, the cell with the most agents is aggregated."""
-    from benchmarks.leaderboard import group_by_env, main_cells, render_markdown, seed_matrix
+    from lfd_bench.leaderboard import group_by_env, main_cells, render_markdown, seed_matrix
 
     def result(env, label, agent, seed, score):
         return {"cell": {"suite": "s", "env_id": env, "agent": agent, "seed": seed, "tags": {"label": label}},
@@ -579,7 +579,7 @@ def test_bad_env_kwargs_and_agent_specs_fail_before_training(tmp_path, capsys):
 
 
 def test_performance_profile_figure_has_a_title():
-    from benchmarks.plots import PROFILES_TITLE, profiles_figure
+    from lfd_bench.plots import PROFILES_TITLE, profiles_figure
 
     taus = np.linspace(0, 1, 5)
     fig = profiles_figure({"dmfd": np.linspace(1, 0, 5)}, {"dmfd": np.stack([np.linspace(0.9, 0, 5),
@@ -595,7 +595,7 @@ def test_committed_leaderboard_is_a_page_a_reader_can_use():
     board = (root / "leaderboard.md").read_text()
     lines = board.splitlines()
     assert len(lines) <= 400 and max(map(len, lines)) <= 600
-    for results in sorted(p for p in (root / "benchmarks" / "results").iterdir()
+    for results in sorted(p for p in (root / "results").iterdir()
                           if p.is_dir() and not p.name.startswith("_")):
         assert f"<!-- leaderboard:suite={results.name} -->" in board, results.name
         page = root / "docs" / "results" / f"{results.name}.md"
@@ -609,7 +609,7 @@ def test_committed_leaderboard_is_a_page_a_reader_can_use():
 def test_headline_shows_success_where_the_suite_says_so():
     """A suite whose thesis reports success rates (``"headline_metric": "is_success"``) gets them in its
     headline table and verdicts, seeds as runs, beside the reported rate."""
-    from benchmarks.leaderboard import render_headline
+    from lfd_bench.leaderboard import render_headline
 
     def result(seed, success):
         return {"cell": {"suite": "s", "env_id": "Push2DObstacle-v0", "agent": "mopa_sac", "seed": seed, "tags": {}},

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 import torch
 
-from benchmarks import cell as bench
-from benchmarks.checkpoints import CHECKPOINT_DIRNAME, CheckpointStore
+from lfd_bench import cell as bench
+from lfd_bench.checkpoints import CHECKPOINT_DIRNAME, CheckpointStore
 
 ROOT = Path(__file__).resolve().parent.parent
 SMALL = {"batch_size": 32}
@@ -109,7 +109,7 @@ def test_bc_trains_its_configured_updates_whatever_the_curve_points(tmp_path, mo
 
 @pytest.mark.timeout(300)
 def test_benchmark_run_killed_mid_cell_resumes_and_cleans_up(tmp_path):
-    """The real thing: ``python -m benchmarks.run`` killed with SIGKILL once a checkpoint exists."""
+    """The real thing: ``python -m lfd_bench.run`` killed with SIGKILL once a checkpoint exists."""
     suite = {"name": "killed", "seeds": [1], "eval_episodes": 2, "curve_points": 2, "budget": 400,
              "checkpoint_steps": 100,
              "cells": [{"env": "Push2DObstacle-v0", "agents": {"sac": {"learning_starts": 50, "batch_size": 32}}}]}
@@ -118,7 +118,7 @@ def test_benchmark_run_killed_mid_cell_resumes_and_cleans_up(tmp_path):
     env = {**os.environ, "OMP_NUM_THREADS": "1", "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl")}
 
     def command(out):
-        return [sys.executable, "-m", "benchmarks.run", "--suite", str(path), "--out", str(out),
+        return [sys.executable, "-m", "lfd_bench.run", "--suite", str(path), "--out", str(out),
                 "--leaderboard", str(out / "leaderboard.md"), "--no-progress"]
 
     killed_out, plain_out = tmp_path / "killed", tmp_path / "plain"
@@ -182,7 +182,7 @@ def test_a_restored_learner_trains_on_exactly_as_the_original(agent, tmp_path, o
     freshly built one loaded with its training state give the same weights (and an unloaded one not)."""
     import gymnasium as gym
 
-    from benchmarks.agents import resolve_agent
+    from lfd_bench.agents import resolve_agent
 
     kwargs = {**LEARNERS[agent], "demo_cache": str(tmp_path)} if "demo_episodes" in LEARNERS[agent] else LEARNERS[agent]
 

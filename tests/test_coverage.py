@@ -1,4 +1,4 @@
-"""benchmarks.coverage: the end-effector recorder sees every low-level step (MoPA's planned
+"""lfd_bench.coverage: the end-effector recorder sees every low-level step (MoPA's planned
 waypoints included), suites pass ``coverage_steps`` to cells, and the picture/markdown are made."""
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 import lfd_envs  # noqa: F401
-from benchmarks import run as bench
-from benchmarks.coverage import EndEffectorRecorder, coverage_markdown, coverage_of, load_coverage, plot_coverage
+from lfd_bench import run as bench
+from lfd_bench.coverage import EndEffectorRecorder, coverage_markdown, coverage_of, load_coverage, plot_coverage
 from lfd_envs.mujoco.ompl_planner import ompl_available
 
 
@@ -96,7 +96,7 @@ def test_plot_and_markdown_from_results(tmp_path):
 
 
 def test_coverage_picture_has_a_colour_bar_and_no_empty_panels(tmp_path):
-    from benchmarks.coverage import coverage_figure
+    from lfd_bench.coverage import coverage_figure
 
     rng = np.random.default_rng(1)
     _fake_result(tmp_path, "mopa_sac", 0, rng.uniform(-0.4, 0.4, (50, 2)).round(4).tolist(), 40)

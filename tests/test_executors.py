@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from benchmarks import run as bench
-from benchmarks.storage import read_result, result_files
+from lfd_bench import run as bench
+from lfd_bench.storage import read_result, result_files
 
 
 class GoalAgent:
@@ -81,7 +81,7 @@ def sac_dies_once_after_a_checkpoint(env, seed, marker, **kwargs):
     """SB3 SAC whose process dies (once, ``marker`` records it) when it goes on from a checkpoint."""
     import functools
 
-    from benchmarks.agents import resolve_agent
+    from lfd_bench.agents import resolve_agent
 
     model = resolve_agent("sac")(env, seed, **kwargs)
     learn = model.learn
@@ -135,8 +135,8 @@ def test_serial_cells_run_on_their_own_core_count(monkeypatch):
     subnormals flushed to zero; both settings are restored afterwards."""
     import torch
 
-    from benchmarks import cell as cell_module
-    from benchmarks import executors
+    from lfd_bench import cell as cell_module
+    from lfd_bench import executors
 
     seen = []
 
@@ -160,7 +160,7 @@ def test_flushing_subnormals_leaves_numpy_limits_right_and_quiet():
     import sys
 
     code = ("import warnings, numpy as np, torch\n"
-            "from benchmarks.executors import flush_denormals, flush_denormals_enabled\n"
+            "from lfd_bench.executors import flush_denormals, flush_denormals_enabled\n"
             "flush_denormals(True)\n"
             "assert flush_denormals_enabled()\n"
             "warnings.simplefilter('error')\n"
@@ -174,7 +174,7 @@ def test_flushing_subnormals_leaves_numpy_limits_right_and_quiet():
 def test_missing_ray_names_this_distribution(monkeypatch):
     import sys
 
-    from benchmarks.executors import run_ray
+    from lfd_bench.executors import run_ray
 
     monkeypatch.setitem(sys.modules, "ray", None)  # as if Ray were not installed
     with pytest.raises(ValueError, match=r"lfd-suite") as info:

@@ -125,7 +125,7 @@ def test_learned_backend_predicts_motion_and_dynamics_stage_resumes(tmp_path):
 
 
 def test_mail_agent_runs_from_the_benchmark_harness():
-    from benchmarks.agents import resolve_agent
+    from lfd_bench.agents import resolve_agent
 
     env = gym.make("ThreeBoxes-v0", num_pickers=1, action_mode="pick_place", obs_mode="state")
     agent = resolve_agent("mail")(env, 0, teacher_pickers=3, teacher_episodes=1, population=8, simulator_worlds=8,
@@ -138,8 +138,8 @@ def test_mail_agent_runs_from_the_benchmark_harness():
 
 
 def test_mail_agent_checkpoint_selection_acts_with_the_best_student_and_counts_its_episodes():
-    from benchmarks.agents import resolve_agent
-    from benchmarks.budget import StepCounter, env_steps
+    from lfd_bench.agents import resolve_agent
+    from lfd_bench.budget import StepCounter, env_steps
 
     env = StepCounter(gym.make("ThreeBoxes-v0", num_pickers=1, action_mode="pick_place", obs_mode="state"))
     agent = resolve_agent("mail")(env, 0, teacher_pickers=3, teacher_episodes=1, population=8, simulator_worlds=8,

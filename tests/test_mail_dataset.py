@@ -1,4 +1,4 @@
-"""benchmarks.mail_dataset: the CEM-converted teacher solution of each eval episode, played by
+"""lfd_bench.mail_dataset: the CEM-converted teacher solution of each eval episode, played by
 the student, solves ThreeBoxes 3 -> 1 far better than random actions."""
 
 from __future__ import annotations
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import lfd_envs  # noqa: F401
-from benchmarks.agents import resolve_agent
-from benchmarks.mail_dataset import MAILDatasetAgent
+from lfd_bench.agents import resolve_agent
+from lfd_bench.mail_dataset import MAILDatasetAgent
 from lfd_envs.core.rollout import play_episode
 
 KW = {"num_pickers": 1, "action_mode": "pick_place", "obs_mode": "state"}

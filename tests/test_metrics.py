@@ -59,7 +59,7 @@ def test_fold_quality_expert_high_grab_lift_drop_low(pinned):
 
 
 def test_fold_quality_below_expert_for_random_pick_place():
-    from benchmarks.agents import PickPlaceRandomAgent
+    from lfd_bench.agents import PickPlaceRandomAgent
 
     env = _diagonal(False)
     rand = np.mean([play_episode(env, PickPlaceRandomAgent(env, seed=s), seed=0, options=EVAL0)["fold_quality"]
@@ -133,7 +133,7 @@ def test_drycloth_mail_spread_reference_and_reach():
 
 
 def test_paper_mail_suite_uses_mail_metrics():
-    from benchmarks.run import load_suite
+    from lfd_bench.run import load_suite
 
     for cell in load_suite("paper-mail")["cells"]:
         if cell["env"] in ("ClothFold-v0", "DryCloth-v0"):
@@ -146,7 +146,7 @@ def test_paper_mail_suite_uses_mail_metrics():
 
 # ---------------------------------------------------------------------- random agents
 def test_random_agent_in_pick_place_picks_particles():
-    from benchmarks.agents import PickPlaceRandomAgent, RandomAgent, resolve_agent
+    from lfd_bench.agents import PickPlaceRandomAgent, RandomAgent, resolve_agent
 
     env = gym.make("lfd_envs:ClothFold-v0", num_pickers=1, action_mode="pick_place", obs_mode="state", resolution=20)
     mail_random, uniform = resolve_agent("random")(env, 0), resolve_agent("random_uniform")(env, 0)
@@ -180,7 +180,7 @@ def test_random_agent_in_pick_place_picks_particles():
 
 # ---------------------------------------------------------------------- harness and leaderboard
 def _result(agent, finals, metrics=None, seed=0):
-    from benchmarks.cell import environment_info
+    from lfd_bench.cell import environment_info
 
     r = {"cell": {"suite": "m", "env_id": "ClothFoldDiagonalPinned-v0", "agent": agent, "seed": seed, "tags": {}},
          "final_normalized_performance": finals, "learning_curve": [], "trained_steps": 0,
@@ -191,13 +191,13 @@ def _result(agent, finals, metrics=None, seed=0):
 
 
 def test_harness_records_fold_quality_and_leaderboard_reports_it(tmp_path, monkeypatch):
-    from benchmarks import run as bench
-    from benchmarks import stats
+    from lfd_bench import run as bench
+    from lfd_bench import stats
 
     monkeypatch.setattr(stats, "REPS", 200)  # fewer bootstrap replications: the table, not the CIs, is tested
     monkeypatch.setattr(stats, "POI_REPS", 100)
-    from benchmarks.leaderboard import write_leaderboard
-    from benchmarks.storage import read_result, write_result
+    from lfd_bench.leaderboard import write_leaderboard
+    from lfd_bench.storage import read_result, write_result
 
     cell = bench.Cell(suite="m", env_id="ClothFoldDiagonalPinned-v0",
                       env_kwargs={"action_mode": "pick_place", "obs_mode": "state", "resolution": 20},
@@ -232,7 +232,7 @@ def test_harness_records_fold_quality_and_leaderboard_reports_it(tmp_path, monke
 
 
 def test_malformed_final_metrics_is_corrupt(tmp_path):
-    from benchmarks.storage import CorruptResult, read_result, write_result
+    from lfd_bench.storage import CorruptResult, read_result, write_result
 
     path = write_result(tmp_path / "r.json", _result("bc", [0.5, 0.6], {"fold_quality": [0.1]}))
     with pytest.raises(CorruptResult, match="final_metrics"):

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from benchmarks.escapes import check_task, static_box_depth
+from tools.escapes import check_task, static_box_depth
 from lfd_envs.sim import ParticleSim, SceneBuilder, SimParams
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import lfd_envs  # noqa: F401
-from benchmarks.demo_cache import cache_key, demonstrations_for
+from lfd_bench.demo_cache import cache_key, demonstrations_for
 from lfd_envs import datasets
 from lfd_envs.experts import make_expert
 from lfd_envs.experts.noisy import EpsilonNoisyPolicy, noisy_expert_policy

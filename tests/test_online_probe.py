@@ -1,4 +1,4 @@
-"""benchmarks.online_probe: every variant starts from the same cached offline policy."""
+"""tools.online_probe: every variant starts from the same cached offline policy."""
 
 import json
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from picker_moves import steer_picker
 
-from benchmarks import online_probe as probe
+from tools import online_probe as probe
 
 SUITE = {"name": "probe", "cells": [
     {"env": "ClothFoldDiagonalPinned-v0", "label": "pp",
@@ -57,7 +57,7 @@ def test_held_rate_counts_episodes_in_which_a_picker_held_the_cloth():
         def predict(self, obs, deterministic=True):
             return np.array([0.0, 0.0, 0.3, 1.0], np.float32), None
 
-    from benchmarks.cell import evaluate
+    from lfd_bench.cell import evaluate
 
     evaluate(Hover(), env, 2, seed=0)
     assert env.rate() == {"held_rate": 0.0} and env.rate() == {}

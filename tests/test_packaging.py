@@ -17,7 +17,7 @@ PYPROJECT = tomllib.loads((Path(__file__).resolve().parent.parent / "pyproject.t
 def test_distribution_is_not_named_lfd():
     assert PYPROJECT["project"]["name"] == "lfd-suite"  # "lfd" on PyPI is an unrelated project
     assert md.version("lfd-suite") == PYPROJECT["project"]["version"]
-    from benchmarks.cell import environment_info
+    from lfd_bench.cell import environment_info
 
     assert environment_info()["versions"]["lfd-suite"] == PYPROJECT["project"]["version"]
 
@@ -62,3 +62,29 @@ def test_collect_cli_with_out_tells_how_minari_finds_it(tmp_path, monkeypatch, c
     out = tmp_path / "demos"
     datasets.main(["collect", "--env", "ThreeBoxes-v0", "--episodes", "1", "--out", str(out)])
     assert f"export MINARI_DATASETS_PATH={out.resolve()}" in capsys.readouterr().out
+
+
+def test_harness_is_the_installed_lfd_bench_package_with_a_console_script():
+    """The harness installs as ``lfd_bench`` with an ``lfd-bench`` script; benchmarks/ and tools/
+    (speed tables, diagnostics) stay in the checkout."""
+    assert PYPROJECT["project"]["scripts"]["lfd-bench"] == "lfd_bench.run:main"
+    assert PYPROJECT["tool"]["setuptools"]["packages"]["find"]["include"] == ["lfd_envs*", "lfd_agents*", "lfd_bench*"]
+    (script,) = [e for e in md.entry_points(group="console_scripts") if e.name == "lfd-bench"]
+    from lfd_bench import run
+
+    assert script.load() is run.main
+    import tools
+
+    for line in tools.__doc__.splitlines():  # every diagnostic says which question it answers
+        if line.startswith("- "):
+            assert line.rstrip().endswith(("?", ".")), line
+
+
+def test_harness_writes_results_and_leaderboard_to_the_working_directory(tmp_path, monkeypatch):
+    """Defaults are relative to where the user runs the command, never the install folder."""
+    from lfd_bench import run
+
+    monkeypatch.chdir(tmp_path)
+    args = run.parse_args(["--suite", "smoke"])
+    assert Path(args.out).resolve() == tmp_path / "results"
+    assert Path(args.leaderboard).resolve() == tmp_path / "leaderboard.md"

@@ -249,7 +249,7 @@ def test_held_particles_counts_what_a_picker_holds_not_its_flag():
 def test_pin_block_leaves_the_cloth_unstretched_at_rest(env_id):
     """The particles the pin block touches are all pinned, so none is pushed out of the block
     against a pinned neighbour (before: edges up to 238 % stretched at rest, -v0)."""
-    from benchmarks.cloth_bounds import edge_strain
+    from tools.cloth_bounds import edge_strain
 
     env = gym.make(env_id, obs_mode="state")
     for k in (0, 1):

@@ -5,13 +5,13 @@ import json
 import gymnasium as gym
 import pytest
 
-from benchmarks import recipes
-from benchmarks import run as bench
+from lfd_bench import recipes
+from lfd_bench import run as bench
 from test_readme import _block
 
 
 def test_every_shipped_recipe_loads_and_names_a_known_agent():
-    from benchmarks.agents import BUILTIN_AGENTS
+    from lfd_bench.agents import BUILTIN_AGENTS
 
     names = recipes.available()
     assert "dmfd/state-v0" in names and "sac/state" in names
@@ -50,7 +50,7 @@ def test_a_suite_cell_takes_the_recipe_and_its_overrides(tmp_path):
 
 def test_readme_recipe_example_runs(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("LFD_CACHE", str(tmp_path))  # demonstrations cached here, not in the home folder
-    exec(compile(_block("import gymnasium as gym\nfrom benchmarks import recipes"), "README-recipes", "exec"), {})
+    exec(compile(_block("import gymnasium as gym\nfrom lfd_bench import recipes"), "README-recipes", "exec"), {})
     out = capsys.readouterr().out
     assert "dmfd/state-v0" in out and "0.5 10000" in out
     assert list((tmp_path / "demos").rglob("*.hdf5"))  # the recipe's demonstrations were collected there

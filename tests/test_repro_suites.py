@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from benchmarks import run as bench
+from lfd_bench import run as bench
 
 
 @pytest.mark.parametrize("name", ["repro-mopa", "repro-mail", "repro-nist", "repro-cpu-v1", "repro-image"])

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from benchmarks.cloth_stretch import SMALL_STEPS, hang
+from tools.cloth_stretch import SMALL_STEPS, hang
 from lfd_envs.sim import ParticleSim, SceneBuilder, SimParams
 
 

@@ -187,7 +187,7 @@ def test_rope_lifted_by_one_end_keeps_its_length():
 def _diagonal_fold_release(relaxation: int) -> tuple[float, float]:
     """One picker carries a corner of a 20x20 cloth onto the opposite corner, holds, releases.
     Returns the max particle speed before the release and in the frame after it."""
-    from benchmarks.cloth_bounds import carry_corner_over
+    from tools.cloth_bounds import carry_corner_over
 
     sim, goal = carry_corner_over(SimParams(release_relaxation=relaxation))
     before = float(np.linalg.norm(sim.velocities[0], axis=1).max())
@@ -251,7 +251,7 @@ def test_v1_release_moves_no_particle_more_than_5_mm():
     """-v1 settings: a 20x20 cloth (coarse-cloth rules apply) folded corner onto corner, held
     until it settles, then released: no particle moves more than 5 mm in the release frame
     (measured 3.7 mm; with the shear exponent 3 it was 9.8 mm)."""
-    from benchmarks.cloth_bounds import release
+    from tools.cloth_bounds import release
 
     moved = release("v1")
     assert moved["particles held"] >= 1

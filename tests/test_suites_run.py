@@ -1,6 +1,6 @@
 """Every committed suite runs: each agent and each env of every suite is built, trained a few
 steps (gradient updates included), evaluated and recorded, with ``--device cpu`` passed to the
-learners. Budgets are tiny (``benchmarks.preflight``): 4 env steps, one demonstration episode,
+learners. Budgets are tiny (``lfd_bench.preflight``): 4 env steps, one demonstration episode,
 one evaluation episode capped at 10 steps (``max_episode_steps``, for time only)."""
 
 import json
@@ -8,10 +8,10 @@ import json
 import gymnasium as gym
 import pytest
 
-from benchmarks import run as bench
-from benchmarks.agents import REFERENCE_AGENTS
-from benchmarks.preflight import preflight_cells
-from benchmarks.storage import read_result, result_files
+from lfd_bench import run as bench
+from lfd_bench.agents import REFERENCE_AGENTS
+from lfd_bench.preflight import preflight_cells
+from lfd_bench.storage import read_result, result_files
 
 SUITES = bench.available_suites()
 

@@ -1,4 +1,4 @@
-"""benchmarks.trace_policy: a cell's learner step by step beside its demonstrator."""
+"""tools.trace_policy: a cell's learner step by step beside its demonstrator."""
 
 import json
 
@@ -6,7 +6,7 @@ import gymnasium as gym
 import pytest
 
 import lfd_envs  # noqa: F401
-from benchmarks import trace_policy
+from tools import trace_policy
 from lfd_envs.experts import make_expert
 
 ROPE = {"obs_mode": "state", "action_mode": "delta"}
@@ -29,7 +29,7 @@ def test_cli_traces_the_cells_learner_and_demonstrator(tmp_path, capsys, monkeyp
                            "policy_kwargs": {"net_arch": [16]}}}}]}
     path = tmp_path / "tiny.json"
     path.write_text(json.dumps(suite))
-    monkeypatch.setattr("benchmarks.agents.DEFAULT_RESULTS", tmp_path)
+    monkeypatch.setattr("lfd_bench.agents.DEFAULT_RESULTS", tmp_path)
     assert trace_policy.main(["--suite", str(path), "--env", "StraightenRope-v0", "--agent", "bc",
                               "--variants", "0", "--steps", "3"]) == 0
     out = capsys.readouterr().out

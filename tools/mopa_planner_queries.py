@@ -36,7 +36,7 @@ def collect(source: str = "random", queries: int = 200, seed: int = 0, env_id: s
 
     out: list[dict[str, Any]] = []
     if source == "learning":  # the first repro-mopa cells' settings: SB3's schedule, MoPA-RL's planner
-        from benchmarks.mopa_modes import _settings
+        from tools.mopa_modes import _settings
 
         wrapper_kwargs, agent_kwargs = _settings("mopa-rl", "sb3")
         agent = MoPAAgent(gym.make(env_id), seed=seed, wrapper_kwargs=wrapper_kwargs, **agent_kwargs)
@@ -118,7 +118,7 @@ def compare(queries: list[dict[str, Any]], seed: int = 0, env_id: str = "Push2DO
     import gymnasium as gym
 
     import lfd_envs  # noqa: F401
-    from benchmarks.mopa_modes import MOPA_RL_PLANNER
+    from tools.mopa_modes import MOPA_RL_PLANNER
     from lfd_agents.mopa import make_mopa_env
 
     old = dict(MOPA_RL_PLANNER, planner_kwargs={**MOPA_RL_PLANNER["planner_kwargs"], "seed": seed})

@@ -1,6 +1,6 @@
 """MAIL as a benchmark agent: teacher demos → MAIL conversion → DMfD student.
 
-``python -m benchmarks.run`` builds agents as ``factory(env, seed, **kwargs)`` and calls
+``python -m lfd_bench.run`` builds agents as ``factory(env, seed, **kwargs)`` and calls
 ``learn(total_timesteps)`` in chunks, then ``predict(obs)``. :class:`MAILAgent` does, on the
 first ``learn``:
 
@@ -16,7 +16,7 @@ scored on ``select_episodes`` held-out training variants and the best-scoring po
 acts (:class:`lfd_agents.selection.BestCheckpoint`; its episodes count as env steps). With a fixed
 ``workdir`` every stage resumes from disk (a temporary folder is used otherwise).
 
-Config cell example (``benchmarks/configs/paper-mail.json``)::
+Config cell example (``lfd_bench/configs/paper-mail.json``)::
 
     "agents": {"mail": {"teacher_pickers": 2, "backend": "simulator"}}
 """
@@ -90,7 +90,7 @@ class MAILAgent:
 
     @classmethod
     def for_benchmark(cls, env: gym.Env, seed: int = 0, **kwargs: Any) -> "MAILAgent":
-        """Factory used by ``benchmarks.agents`` (``"mail"``)."""
+        """Factory used by ``lfd_bench.agents`` (``"mail"``)."""
         return cls(env, seed=seed, **kwargs)
 
     # ------------------------------------------------------------------ stages

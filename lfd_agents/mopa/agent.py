@@ -1,4 +1,4 @@
-"""MoPA agent for harnesses that step the plain task env (``benchmarks.run``).
+"""MoPA agent for harnesses that step the plain task env (``lfd_bench.run``).
 
 :class:`MoPAAgent` trains :class:`~lfd_agents.mopa.sac.MoPASAC` (or MoPA-TD3) on the task
 wrapped in :class:`~lfd_agents.mopa.wrapper.MoPAWrapper`, with the budget counted in

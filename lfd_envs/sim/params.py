@@ -69,7 +69,7 @@ class SimParams:
             stretch error that grows with the length of the particle chains it carries
             (hung from two corners for 2.5 s at 20 substeps, a 0.6 m cloth stretches 5.3 % at
             its worst edge with 40 particles per side and 38 % with 80;
-            ``python -m benchmarks.cloth_stretch``), and the ``1.5`` power keeps that error at
+            ``python -m tools.cloth_stretch``), and the ``1.5`` power keeps that error at
             the reference cloth's.  :class:`~lfd_envs.sim.ParticleSim` applies it
             (:meth:`for_resolution`); ``sim.substeps`` gives the substeps it runs.
         gravity: Gravitational acceleration along +z in m/s^2 (negative: downwards).
