@@ -144,6 +144,11 @@ def test_pressing_expert_grasps_at_the_clip_height_and_folds_as_well():
         assert rest_z == pytest.approx(resting, abs=1e-3)
         assert press_z == pytest.approx(clip, abs=1e-4)
         assert press_score >= rest_score - 0.02 and press_score > 0.9, (variant, press_score, rest_score)
+        part_z, part_score = _grasp_height_and_score(env, make_expert(env, press=0.005, **speeds), variant)
+        assert part_z == pytest.approx(resting - 0.005, abs=1e-3)  # a partial press: 5 mm below resting
+        assert part_score > 0.85, (variant, part_score, rest_score)  # still folds (0.90 against 0.93 at rest)
+    with pytest.raises(ValueError, match="press"):
+        make_expert(env, press=-0.01)
 
 
 def test_v1_rope_pick_place_expert_holds_both_ends_through_the_carry():

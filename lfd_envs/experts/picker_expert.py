@@ -102,7 +102,10 @@ class PickerExpert:
             lowers it that much less (pressed down to the clip height over the layer below, it
             squeezes that layer and the released particle pops). Not for the rope: a picker
             pressed down squeezes the thin rope out of its reach. Without colliding pickers
-            every descent already ends at the clip height.
+            every descent already ends at the clip height. A number instead of ``True`` presses
+            that many metres below the resting height (never below the clip height), and the
+            place is raised by as much (at most a particle diameter): a partial press keeps a
+            margin for a learner's short descent without squeezing the layer under the picker.
     """
 
     #: delta mode: keep re-aiming the place point at the live target during the lift and the
@@ -118,7 +121,7 @@ class PickerExpert:
 
     def __init__(self, env: Any, hold_speed: float = 0.6, tolerance: float = 1e-3, max_phase_steps: int = 80,
                  direct_approach: bool = False, free_speed: float = 1.0, grasp_in_descent: bool = False,
-                 press: bool = False) -> None:
+                 press: bool | float = False) -> None:
         for name, speed in (("hold_speed", hold_speed), ("free_speed", free_speed)):
             if not 0.0 < float(speed) <= 1.0:
                 raise ValueError(f"{name} must be in (0, 1] (a fraction of the maximum delta speed), got {speed!r}")
@@ -139,7 +142,13 @@ class PickerExpert:
         self.max_phase_steps = int(max_phase_steps)
         self.direct_approach = bool(direct_approach)
         self.grasp_in_descent = bool(grasp_in_descent)
-        self.press = bool(press)
+        if isinstance(press, bool) or press is None:
+            self.press_depth = float("inf") if press else 0.0
+        elif float(press) >= 0.0:
+            self.press_depth = float(press)
+        else:
+            raise ValueError(f"press must be a bool or a depth >= 0 in metres, got {press!r}")
+        self.press = self.press_depth > 0.0
         self._episodes = EpisodeTracker(env)
         self.reset()
 
@@ -252,9 +261,13 @@ class PickerExpert:
         pick, place = ws.clip(move.pick), ws.clip(move.place)
         if self._flex_like and name in ("approach", "descend") and not self._presses(name):  # before the grasp
             pick = ws.clip(self._resting_on_top(pick))
+        elif self._flex_like and self._presses(name) and np.isfinite(self.press_depth):  # a partial press
+            pick = self._resting_on_top(pick)
+            pick[:, 2] -= self.press_depth
+            pick = ws.clip(pick)
         if self._flex_like and self.press and name == "lower":
             place = place.copy()
-            place[:, 2] += 2.0 * self.base.batch.sim.params.particle_radius
+            place[:, 2] += min(self.press_depth, 2.0 * self.base.batch.sim.params.particle_radius)
         wpt = s.waypoints(pick, place, top)
         approach = pick if self.direct_approach else wpt["above_pick"]
         target = {"approach": approach, "descend": pick, "lift": wpt["lifted"],
