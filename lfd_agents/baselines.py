@@ -73,6 +73,8 @@ class SACLfDMultiInputPolicy(_FastSACPolicyMixin, SACMultiInputPolicy):
 class SACLfD(SAC):
     """SB3 SAC with the replay buffer pre-filled with demonstrations ("replay-buffer spiking").
 
+    The benchmark's settings: the recipes ``sac_lfd/state-v1`` and ``sac_lfd/state-v0`` (lfd_bench).
+
     The update is SB3 SAC's, operation for operation (same batches, same random draws, same
     losses for a seed), run with fused twin critics, fused Adam and the target update in two
     fused calls, without critic weight gradients in the actor's backward pass and without a
@@ -197,6 +199,7 @@ class AWAC(DMfD):
     DMfD with ``entropy_weight=0`` (pure advantage-weighted regression actor), no RSI,
     ``offline_steps`` gradient steps on the demonstration buffer before the first env step,
     and SB3/AWAC defaults γ = 0.99, 256-256 networks. Every DMfD argument can be passed.
+    The benchmark's settings: the recipes ``awac/state-v1`` and ``awac/state-v0`` (lfd_bench).
     """
 
     def __init__(self, policy: Any, env: GymEnv | str | None, demonstrations: Any = None,
@@ -273,6 +276,8 @@ class BCMultiInputPolicy(DictPolicyDefaults, BCPolicy):
 
 class BC(BaseAlgorithm):
     """Behaviour cloning from a demonstration dataset, SB3 style.
+
+    The benchmark's settings: the recipes ``bc/state-v1`` and ``bc/state-v0`` (lfd_bench).
 
     Args:
         policy: ``"MlpPolicy"``, ``"CnnPolicy"`` or ``"MultiInputPolicy"`` (or a BCPolicy class).

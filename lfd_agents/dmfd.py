@@ -354,6 +354,10 @@ class DMfD(OffPolicyAlgorithm):
     """DMfD (module docstring). SB3 API: ``DMfD(policy, env, demonstrations=...)``, ``learn``,
     ``predict``, ``save``, ``load``.
 
+    The defaults follow the paper (1024-1024 networks, no offline phase, λ 2, lr 3e-4). The
+    settings the benchmark runs are the harness's recipes: ``dmfd/state-v1`` on the ``-v1`` ids
+    and ``dmfd/state-v0`` on the ``-v0`` ids (``lfd_bench.recipes.load("dmfd/state-v1").make(env)``).
+
     Args:
         policy: ``"MlpPolicy"`` (state), ``"CnnPolicy"`` (image) or ``"MultiInputPolicy"``
             (``"state+image"``), or a :class:`DMfDPolicy` subclass.
