@@ -310,3 +310,22 @@ def test_v1_diagonal_expert_puts_a_slid_corner_back():
     from its partner, p-hat 0.92; the fold alone scored 0.90)."""
     info, = _fold_infos("ClothFoldDiagonalUnpinned-v1", (0,), resolution=20)
     assert info["corner_distance"] < 0.03 and info["normalized_performance"] > 0.91, info
+
+
+def test_rope_expert_ignores_press():
+    """One demonstrator setting serves every task: the rope expert accepts ``press`` and acts as
+    without it (pressed into the single strand, a picker squeezes it out of reach)."""
+    env = gym.make("StraightenRope-v1", obs_mode="state", action_mode="delta")
+    actions = []
+    for press in (False, 0.005):
+        expert = make_expert(env, hold_speed=0.5, free_speed=0.5, press=press)
+        obs, _ = env.reset(seed=0, options={"variant": 0, "split": "eval"})
+        expert.reset()
+        run = []
+        for _ in range(25):
+            action = expert.predict(obs)[0]
+            run.append(action)
+            obs, *_ = env.step(action)
+        actions.append(np.array(run))
+    assert not expert.press
+    np.testing.assert_array_equal(actions[0], actions[1])

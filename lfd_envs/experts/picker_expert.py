@@ -106,6 +106,8 @@ class PickerExpert:
             that many metres below the resting height (never below the clip height), and the
             place is raised by as much (at most a particle diameter): a partial press keeps a
             margin for a learner's short descent without squeezing the layer under the picker.
+            Experts whose :attr:`presses` is off (the rope's) accept ``press`` and ignore it, so
+            one demonstrator setting serves every task.
     """
 
     #: delta mode: keep re-aiming the place point at the live target during the lift and the
@@ -118,6 +120,9 @@ class PickerExpert:
     #: by default (on for the rope and ClothFold): the other cloth experts' plans are tuned to
     #: picks at the cloth's height.
     pick_place_on_top: bool = False
+    #: whether ``press`` applies: on the cloth the layer under a pressing picker stays in reach,
+    #: held in place by its neighbours; the rope's single strand rolls out from under it.
+    presses: bool = True
 
     def __init__(self, env: Any, hold_speed: float = 0.6, tolerance: float = 1e-3, max_phase_steps: int = 80,
                  direct_approach: bool = False, free_speed: float = 1.0, grasp_in_descent: bool = False,
@@ -148,6 +153,8 @@ class PickerExpert:
             self.press_depth = float(press)
         else:
             raise ValueError(f"press must be a bool or a depth >= 0 in metres, got {press!r}")
+        if not type(self).presses:
+            self.press_depth = 0.0
         self.press = self.press_depth > 0.0
         self._episodes = EpisodeTracker(env)
         self.reset()

@@ -30,6 +30,9 @@ class StraightenRopeExpert(PickerExpert):
     #: with colliding pickers a pick at the table squeezes the thin rope's end out of reach
     #: before the grasp, and a place at the table presses the released end aside
     pick_place_on_top = True
+    #: ``press`` is ignored: a picker pressed into the rope squeezes it out of reach, and learners
+    #: imitate pressing rope demonstrations worse than resting ones.
+    presses = False
 
     def _rope(self) -> tuple[np.ndarray, float]:
         pos = self.positions
