@@ -149,7 +149,7 @@ class PickerExpert:
         self.grasp_in_descent = bool(grasp_in_descent)
         if isinstance(press, bool) or press is None:
             self.press_depth = float("inf") if press else 0.0
-        elif float(press) >= 0.0:
+        elif isinstance(press, (int, float, np.floating, np.integer)) and float(press) >= 0.0:
             self.press_depth = float(press)
         else:
             raise ValueError(f"press must be a bool or a depth >= 0 in metres, got {press!r}")
