@@ -48,6 +48,15 @@ def test_bad_requests_are_refused(tmp_path, capsys):
     assert not list(tmp_path.glob("offline_*"))
 
 
+def test_a_recipe_cell_is_found_with_the_recipe_settings():
+    suite = {"name": "r", "cells": [{"env": "StraightenRope-v1", "env_kwargs": {"obs_mode": "state"},
+                                     "agents": {"bc": {"recipe": "bc/state-v1", "demo_episodes": 7}}}]}
+    cell = probe.find_cell(suite, "StraightenRope-v1", "bc")
+    assert "recipe" not in cell["agent_kwargs"]
+    assert cell["agent_kwargs"]["n_epochs"] == 100 and cell["agent_kwargs"]["demo_episodes"] == 7
+    assert cell["agent_kwargs"]["demo_policy_kwargs"]["hold_speed"] == 0.5
+
+
 def test_held_rate_counts_episodes_in_which_a_picker_held_the_cloth():
     import gymnasium as gym
 

@@ -257,3 +257,39 @@ def test_pin_block_leaves_the_cloth_unstretched_at_rest(env_id):
         base = env.unwrapped
         strain, _, _ = edge_strain(base.batch.sim.builders[0], base.particle_positions)
         assert strain.max() < 0.10, (k, strain.max())
+
+
+# ----------------------------------------------------------------------------- grasp flags in the state
+@pytest.mark.parametrize("env_id", ["StraightenRope-v0", "ClothFoldDiagonalUnpinned-v0"])
+def test_observe_grasp_appends_one_flag_per_picker_that_follows_what_it_holds(env_id):
+    from lfd_envs.experts import make_expert
+
+    plain = make(env_id, obs_mode="state")
+    env = make(env_id, obs_mode="state", observe_grasp=True)
+    check_env(env.unwrapped, skip_render_check=True)
+    p = env.unwrapped.num_pickers
+    assert env.observation_space.shape[0] == plain.observation_space.shape[0] + p
+    assert np.all(env.observation_space.low[-p:] == 0) and np.all(env.observation_space.high[-p:] == 1)
+    obs, _ = env.reset(seed=3)
+    ref, _ = plain.reset(seed=3)
+    expert = make_expert(env)
+    flags = set()
+    for _ in range(30):
+        action, _ = expert.predict(obs)
+        obs, *_ = env.step(action)
+        ref, *_ = plain.step(action)
+        np.testing.assert_array_equal(obs[:-p], ref)  # the task's state is unchanged
+        held = env.unwrapped.held_particles
+        np.testing.assert_array_equal(obs[-p:], (held > 0).astype(np.float32))
+        flags.add(bool(obs[-p:].any()))
+    assert flags == {False, True}, "the expert grasps within 30 steps, so the flag must turn on"
+
+
+def test_observe_grasp_in_the_vector_env_and_bad_values():
+    vec = gym.make_vec("StraightenRope-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                       resolution=15, obs_mode="state", observe_grasp=True)
+    obs, _ = vec.reset(seed=0)
+    assert obs.shape == (2, make("StraightenRope-v0").observation_space.shape[0] + 2)
+    assert np.all(obs[:, -2:] == 0)
+    with pytest.raises(ValueError, match="observe_grasp"):
+        make("StraightenRope-v0", observe_grasp="yes")

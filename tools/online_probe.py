@@ -48,8 +48,11 @@ def find_cell(suite: dict[str, Any], env_id: str, agent: str, label: str | None 
         options = [(c["env"], c.get("label")) for c in suite["cells"] if agent in c.get("agents", {})]
         raise ValueError(f"{len(matches)} cells of suite {suite.get('name')!r} match env {env_id!r}, label "
                          f"{label!r} and agent {agent!r}; cells with that agent: {options}")
+    from lfd_bench import recipes
+
     c = matches[0]
-    return {"env": env_id, "env_kwargs": dict(c.get("env_kwargs", {})), "agent_kwargs": dict(c["agents"][agent])}
+    agent_kwargs, _ = recipes.resolve(agent, dict(c["agents"][agent]))  # a recipe cell: its settings
+    return {"env": env_id, "env_kwargs": dict(c.get("env_kwargs", {})), "agent_kwargs": agent_kwargs}
 
 
 def _batch_stats(agent: Any, buffer: Any, name: str, n: int = 256) -> dict[str, float]:

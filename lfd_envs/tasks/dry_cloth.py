@@ -237,10 +237,11 @@ class DryClothEnv(PickPlaceParticleEnv):
                  render_size: int | tuple[int, int] | None = None, metric: str = "default",
                  reach: float = DEFAULT_REACH,
                  pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
-                 physics: str = "fast") -> None:
+                 physics: str = "fast", observe_grasp: bool = False) -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution, metric=metric, reach=reach), action_mode,
                     obs_mode, image_size, device, render_mode, horizon, render_size,
-                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics,
+                    observe_grasp=observe_grasp)
 
 
 class DryClothVectorEnv(PickPlaceParticleVectorEnv):
@@ -254,7 +255,8 @@ class DryClothVectorEnv(PickPlaceParticleVectorEnv):
                  horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
                  max_episode_steps: int | None = None, metric: str = "default", reach: float = DEFAULT_REACH,
                  pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
-                 physics: str = "fast") -> None:
+                 physics: str = "fast", observe_grasp: bool = False) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution, metric=metric, reach=reach),
                     action_mode, obs_mode, image_size, device, render_mode, horizon, render_size, max_episode_steps,
-                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics,
+                    observe_grasp=observe_grasp)

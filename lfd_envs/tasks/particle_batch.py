@@ -88,13 +88,19 @@ class ParticleBatch:
         sim_options: Engine parameters (:class:`~lfd_envs.sim.SimParams` fields) that replace
             the task's and the preset's, e.g. ``{"substeps": 10}``; None keeps those.
         physics: The physics preset, ``"fast"`` or ``"flex_like"`` (:mod:`lfd_envs.physics`).
+        observe_grasp: Append to the reduced state one value per picker, 1.0 while it holds at
+            least one particle, else 0.0 (:meth:`state_obs`).
     """
 
     def __init__(self, task: ParticleTask, num_worlds: int, action_mode: str, device: str = "cpu",
                  cache_size: int = 128, pick_place_speed: float | None = None,
-                 sim_options: dict[str, Any] | None = None, physics: str = DEFAULT_PHYSICS) -> None:
+                 sim_options: dict[str, Any] | None = None, physics: str = DEFAULT_PHYSICS,
+                 observe_grasp: bool = False) -> None:
         from lfd_envs.sim import ParticleSim
 
+        if not isinstance(observe_grasp, (bool, np.bool_)):
+            raise ValueError(f"observe_grasp must be True or False, got {observe_grasp!r}")
+        self.observe_grasp = bool(observe_grasp)
         self.physics = physics_preset(physics)
         self.task = task
         self.num_worlds = int(num_worlds)
@@ -211,8 +217,31 @@ class ParticleBatch:
 
     # ------------------------------------------------------------------ observations
     def state_obs(self) -> np.ndarray:
-        """Reduced states ``(W, D)`` float32."""
-        return self.task.reduced_state(self.positions, self.pickers, self.ctx).astype(np.float32)
+        """Reduced states ``(W, D)`` float32: the task's, then (``observe_grasp``) one flag per
+        picker, 1.0 while it holds a particle."""
+        state = self.task.reduced_state(self.positions, self.pickers, self.ctx).astype(np.float32)
+        if not self.observe_grasp:
+            return state
+        return np.concatenate([state, (self.held_particles() > 0).astype(np.float32)], axis=1)
+
+    def state_bounds(self, bound: float) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds ``(low, high)`` of a reduced state: ``±bound`` for the task's values, [0, 1]
+        for the grasp flags."""
+        n = self.task.state_dim()
+        p = self.task.num_pickers if self.observe_grasp else 0
+        low = np.concatenate([np.full(n, -bound), np.zeros(p)]).astype(np.float32)
+        high = np.concatenate([np.full(n, bound), np.ones(p)]).astype(np.float32)
+        return low, high
+
+    def held_particles(self) -> np.ndarray:
+        """Number of particles each picker holds ``(W, P)`` (0 for a flag on over nothing)."""
+        attached = self.sim.attached
+        p = self.task.num_pickers
+        out = np.zeros((self.num_worlds, p), dtype=np.int64)
+        for w in range(self.num_worlds):
+            a = attached[w]
+            out[w] = np.bincount(a[a >= 0], minlength=p)[:p]
+        return out
 
     def particles_obs(self) -> np.ndarray:
         """All particle positions then the pickers, ``(W, N + P, 3)`` float32."""

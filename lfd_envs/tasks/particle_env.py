@@ -31,7 +31,10 @@ the task per action mode; the vector env also takes ``max_episode_steps``, which
 as in MAIL; default None: the preset's, for ``fast`` the task's own, faster schedule),
 ``sim_options`` (engine parameters replacing the task's and the preset's, a dict of
 ``SimParams`` fields such as ``{"self_collision_distance": 0.01}``; default None; they do not
-change ``physics``, which the scripted experts plan for); plus
+change ``physics``, which the scripted experts plan for), ``observe_grasp`` (default False;
+True appends to the reduced state one value per picker, 1.0 while it holds a particle, else 0.0:
+the gripper state a robot knows, without which a memoryless policy cannot tell a picker that
+is about to grasp from one that has just grasped at the same spot); plus
 task options such as ``pinned``. ``particles`` observations are ``(N + P, 3)``: every particle,
 then the pickers. Tasks whose default action mode is ``"pick_place"`` derive from
 :class:`PickPlaceParticleEnv` / :class:`PickPlaceParticleVectorEnv` instead.
@@ -110,7 +113,8 @@ class _ParticleBatchViews:
         return self.batch.action_mode
 
     def _task_spaces(self) -> tuple[spaces.Box, spaces.Box, spaces.Box]:
-        state = spaces.Box(-POSITION_BOUND, POSITION_BOUND, (self.task.state_dim(),), np.float32)
+        low, high = self.batch.state_bounds(POSITION_BOUND)
+        state = spaces.Box(low, high, dtype=np.float32)
         n = self.batch.sim.num_particles + self.task.num_pickers
         particles = spaces.Box(-POSITION_BOUND, POSITION_BOUND, (n, 3), np.float32)
         return self.batch.action_mode.action_space, state, particles
@@ -131,15 +135,17 @@ class ParticleEnv(_ParticleBatchViews, LfdEnv):
                  render_mode: str | None = None, horizon: int | None = None,
                  render_size: int | tuple[int, int] | None = None,
                  pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
-                 physics: str = "fast") -> None:
+                 physics: str = "fast", observe_grasp: bool = False) -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode, image_size,
                     device, render_mode, horizon, render_size,
-                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics,
+                    observe_grasp=observe_grasp)
 
     def _setup(self, task_options: dict[str, Any], action_mode: str, obs_mode: str | None,
                image_size: Any, device: str, render_mode: str | None, horizon: int | None,
                render_size: Any = None, pick_place_speed: float | None = None,
-               sim_options: dict[str, Any] | None = None, physics: str = "fast") -> None:
+               sim_options: dict[str, Any] | None = None, physics: str = "fast",
+               observe_grasp: bool = False) -> None:
         """The construction shared by every particle env's ``__init__`` (they differ only in
         defaults and task options): the task, ``LfdEnv.__init__``, the batch, the spaces."""
         check_choice("action_mode", action_mode, ACTION_MODES)
@@ -154,7 +160,7 @@ class ParticleEnv(_ParticleBatchViews, LfdEnv):
         self.num_pickers = task.num_pickers
         self.device = device
         self.batch = ParticleBatch(task, 1, action_mode, device, pick_place_speed=pick_place_speed,
-                                   sim_options=sim_options, physics=physics)
+                                   sim_options=sim_options, physics=physics, observe_grasp=observe_grasp)
         self.action_space, self.state_space, self.particles_space = self._task_spaces()
         self._finish_init()
 
@@ -232,8 +238,7 @@ class ParticleEnv(_ParticleBatchViews, LfdEnv):
     @property
     def held_particles(self) -> np.ndarray:
         """Number of particles each picker holds now ``(P,)`` (0 for a flag that is on over nothing)."""
-        attached = self.batch.sim.attached[0]
-        return np.bincount(attached[attached >= 0], minlength=self.num_pickers)[: self.num_pickers]
+        return self.batch.held_particles()[0]
 
 
 class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.VectorEnv):
@@ -260,16 +265,17 @@ class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.Vector
                  horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
                  max_episode_steps: int | None = None,
                  pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
-                 physics: str = "fast") -> None:
+                 physics: str = "fast", observe_grasp: bool = False) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode,
                     image_size, device, render_mode, horizon, render_size, max_episode_steps,
-                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics,
+                    observe_grasp=observe_grasp)
 
     def _setup(self, num_envs: int, task_options: dict[str, Any], action_mode: str, obs_mode: str | None,
                image_size: Any, device: str, render_mode: str | None, horizon: int | None,
                render_size: Any = None, max_episode_steps: int | None = None,
                pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
-               physics: str = "fast") -> None:
+               physics: str = "fast", observe_grasp: bool = False) -> None:
         num_envs = check_int_range("num_envs", num_envs, 1)
         check_choice("action_mode", action_mode, ACTION_MODES)
         device = _check_device(device)
@@ -289,7 +295,7 @@ class ParticleVectorEnv(_ParticleBatchViews, StrictInitKwargs, gym.vector.Vector
         self.device = device
         self.variants = VariantSplit(task.name)
         self.batch = ParticleBatch(task, self.num_envs, action_mode, device, pick_place_speed=pick_place_speed,
-                                   sim_options=sim_options, physics=physics)
+                                   sim_options=sim_options, physics=physics, observe_grasp=observe_grasp)
         self.single_action_space, state, particles = self._task_spaces()
         self.single_observation_space = observation_space(self.obs_mode, self.image_size, state, particles)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
@@ -490,10 +496,11 @@ class PickPlaceParticleEnv(ParticleEnv):
                  render_mode: str | None = None, horizon: int | None = None,
                  render_size: int | tuple[int, int] | None = None,
                  pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
-                 physics: str = "fast") -> None:
+                 physics: str = "fast", observe_grasp: bool = False) -> None:
         self._setup(dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode, image_size,
                     device, render_mode, horizon, render_size,
-                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics,
+                    observe_grasp=observe_grasp)
 
 
 class PickPlaceParticleVectorEnv(ParticleVectorEnv):
@@ -505,7 +512,8 @@ class PickPlaceParticleVectorEnv(ParticleVectorEnv):
                  horizon: int | None = None, render_size: int | tuple[int, int] | None = None,
                  max_episode_steps: int | None = None,
                  pick_place_speed: float | None = None, sim_options: dict[str, Any] | None = None,
-                 physics: str = "fast") -> None:
+                 physics: str = "fast", observe_grasp: bool = False) -> None:
         self._setup(num_envs, dict(num_pickers=num_pickers, resolution=resolution), action_mode, obs_mode,
                     image_size, device, render_mode, horizon, render_size, max_episode_steps,
-                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics)
+                    pick_place_speed=pick_place_speed, sim_options=sim_options, physics=physics,
+                    observe_grasp=observe_grasp)
