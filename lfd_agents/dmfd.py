@@ -660,15 +660,35 @@ class DMfD(OffPolicyAlgorithm):
             for key, value in zip(self._LOG_KEYS, th.stack(logs).double().mean(dim=0).tolist()):
                 self.logger.record(f"train/{key}", value)
 
+    @property
+    def offline_pending(self) -> bool:
+        """Whether the offline phase (``offline_steps`` > 0) has yet to run."""
+        return bool(self.offline_steps) and not self._offline_done
+
+    def pretrain(self) -> None:
+        """Run the offline phase now, if it has yet to run: ``offline_steps`` gradient steps on
+        the demonstrations, no env step (``learn`` runs it otherwise). Lets a caller look at the
+        policy the online phase starts from (e.g. score it as a checkpoint)."""
+        if not self.offline_pending:
+            return
+        if getattr(self, "_logger", None) is None:  # learn() replaces it unless a logger was set
+            from stable_baselines3.common.logger import configure
+
+            self._logger = configure(None, [])
+        self._run_offline_phase()
+
+    def _run_offline_phase(self) -> None:
+        if self.replay_buffer.size() == 0 and (self.demo_buffer is None or self.demo_buffer.size() == 0):
+            warnings.warn("offline_steps > 0 but the replay buffer is empty (no demonstrations); skipping")
+        else:
+            self.train(self.offline_steps, self.batch_size)
+        self._offline_done = True
+
     def _setup_learn(self, total_timesteps: int, callback: Any = None, reset_num_timesteps: bool = True,
                      tb_log_name: str = "run", progress_bar: bool = False):
         out = super()._setup_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar)
-        if self.offline_steps and not self._offline_done:
-            if self.replay_buffer.size() == 0 and (self.demo_buffer is None or self.demo_buffer.size() == 0):
-                warnings.warn("offline_steps > 0 but the replay buffer is empty (no demonstrations); skipping")
-            else:
-                self.train(self.offline_steps, self.batch_size)
-            self._offline_done = True
+        if self.offline_pending:
+            self._run_offline_phase()
         return out
 
     def learn(self, total_timesteps: int, callback: Any = None, log_interval: int = 4, tb_log_name: str = "DMfD",

@@ -5,7 +5,8 @@ to the next (a policy that folds the cloth, a few thousand updates later one tha
 :class:`BestCheckpoint` scores the policy after each training chunk on a fixed set of
 *training-split* variants that the learner never trains on (validation episodes; the eval
 variants stay untouched) and keeps a frozen copy of the best-scoring policy, which is then the
-one that acts::
+one that acts (for a learner with an offline phase, the policy that phase ends with is the
+first candidate)::
 
     best = BestCheckpoint(env, episodes=10)
     for _ in range(chunks):
@@ -122,7 +123,13 @@ class SelectBest:
         self.selector = BestCheckpoint(env, episodes, first_variant, seed=seed)
 
     def learn(self, total_timesteps: int, reset_num_timesteps: bool = True, **kwargs: Any) -> "SelectBest":
-        """Train ``model`` for ``total_timesteps``, then score the result as a checkpoint."""
+        """Train ``model`` for ``total_timesteps``, then score the result as a checkpoint. A
+        learner with an offline phase still to run (``offline_pending``, e.g. DMfD and AWAC with
+        ``offline_steps``) runs it first (``pretrain()``) and the policy it ends with is scored
+        as the first checkpoint: the online phase starts from it and may not improve on it."""
+        if getattr(self.model, "offline_pending", False):
+            self.model.pretrain()
+            self.selector.update(self.model.policy)
         self.model.learn(total_timesteps, reset_num_timesteps=reset_num_timesteps, **kwargs)
         self.selector.update(self.model.policy)
         return self

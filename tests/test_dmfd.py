@@ -335,3 +335,25 @@ def test_demo_ratio_keeps_demonstrations_in_every_batch(demos):
     assert len(batch.actions) == 64 and demo_share(batch) == pytest.approx(0.25, abs=0.03)
     with pytest.raises(ValueError, match="demo_ratio"):
         DMfD("MlpPolicy", ToyPickPlaceEnv(), demonstrations=demos, demo_ratio=1.0, policy_kwargs=tiny())
+
+
+def test_pretrain_runs_the_offline_phase_once_and_learn_goes_on_online(demos):
+    """``pretrain()`` takes the offline steps and no env step; ``learn`` then only goes online,
+    and the result equals a ``learn`` that ran the offline phase itself."""
+    def make():
+        return DMfD("MlpPolicy", ToyPickPlaceEnv(), demonstrations=demos, offline_steps=40, batch_size=16,
+                    policy_kwargs=tiny(), seed=3)
+
+    model = make()
+    assert model.offline_pending
+    model.pretrain()
+    assert not model.offline_pending and model._n_updates == 40 and model.num_timesteps == 0
+    model.pretrain()  # nothing left to do
+    assert model._n_updates == 40
+    model.learn(30)
+    plain = make()
+    plain.learn(30)
+    assert model.num_timesteps == plain.num_timesteps == 30 and model._n_updates == plain._n_updates
+    for a, b in zip(model.policy.parameters(), plain.policy.parameters()):
+        th.testing.assert_close(a, b)
+    assert not DMfD("MlpPolicy", ToyPickPlaceEnv(), demonstrations=demos, policy_kwargs=tiny()).offline_pending

@@ -88,3 +88,28 @@ def test_bad_input():
         BestCheckpoint(env, episodes=1).predict(env.reset(seed=0)[0])
     with pytest.raises(ValueError, match="gym.make"):
         BestCheckpoint(ThreeBoxesEnv(**KW), episodes=1)
+
+
+class _Offline(_Swinging):
+    """A stand-in learner with an offline phase: ``pretrain()`` sets its first policy."""
+
+    def __init__(self, offline_policy, policies):
+        super().__init__(policies)
+        self.offline_policy, self.offline_pending = offline_policy, True
+
+    def pretrain(self):
+        self.policy, self.offline_pending = self.offline_policy, False
+
+
+def test_the_policy_the_offline_phase_ends_with_is_the_first_candidate():
+    env = gym.make("ThreeBoxes-v0", **KW)
+    expert = make_expert(env)
+    idle = np.zeros(env.action_space.shape, np.float32)
+    good = _Fixed(lambda obs: expert.predict(obs)[0])
+    bad = _Fixed(lambda obs: idle)
+    agent = SelectBest(_Offline(good, [bad, bad]), env, episodes=2, first_variant=600)
+    agent.learn(10)
+    agent.learn(10, reset_num_timesteps=False)
+    assert len(agent.selector.scores) == 3  # the offline policy, then one per learn
+    assert agent.selector.best_policy.act is good.act  # online made it worse: the offline one acts
+    agent.close()
