@@ -73,7 +73,7 @@ class SACLfDMultiInputPolicy(_FastSACPolicyMixin, SACMultiInputPolicy):
 class SACLfD(SAC):
     """SB3 SAC with the replay buffer pre-filled with demonstrations ("replay-buffer spiking").
 
-    The benchmark's settings: the recipes ``sac_lfd/state-v1`` and ``sac_lfd/state-v0`` (lfd_bench).
+    The benchmark's settings: the recipes ``sac_lfd/state-v2`` (``-v1`` headline) and ``sac_lfd/state-v0`` (lfd_bench).
 
     The update is SB3 SAC's, operation for operation (same batches, same random draws, same
     losses for a seed), run with fused twin critics, fused Adam and the target update in two
@@ -199,7 +199,7 @@ class AWAC(DMfD):
     DMfD with ``entropy_weight=0`` (pure advantage-weighted regression actor), no RSI,
     ``offline_steps`` gradient steps on the demonstration buffer before the first env step,
     and SB3/AWAC defaults γ = 0.99, 256-256 networks. Every DMfD argument can be passed.
-    The benchmark's settings: the recipes ``awac/state-v1`` and ``awac/state-v0`` (lfd_bench).
+    The benchmark's settings: the recipes ``awac/state-v2`` (``-v1`` headline) and ``awac/state-v0`` (lfd_bench).
     """
 
     def __init__(self, policy: Any, env: GymEnv | str | None, demonstrations: Any = None,
