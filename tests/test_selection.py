@@ -59,12 +59,16 @@ class _Swinging:
         return self.policy.predict(obs, state, episode_start, deterministic)
 
 
-def test_select_best_acts_with_the_best_checkpoint_while_the_learner_moves_on():
-    env = gym.make("ThreeBoxes-v0", **KW)
+def _good_and_bad(env):
+    """The expert as a good policy and an idle one as a bad policy on ``env``."""
     expert = make_expert(env)
     idle = np.zeros(env.action_space.shape, np.float32)
-    good = _Fixed(lambda obs: expert.predict(obs)[0])
-    bad = _Fixed(lambda obs: idle)
+    return expert, idle, _Fixed(lambda obs: expert.predict(obs)[0]), _Fixed(lambda obs: idle)
+
+
+def test_select_best_acts_with_the_best_checkpoint_while_the_learner_moves_on():
+    env = gym.make("ThreeBoxes-v0", **KW)
+    expert, idle, good, bad = _good_and_bad(env)
     agent = SelectBest(_Swinging([bad, good, bad]), env, episodes=2, first_variant=600)
     obs, _ = env.reset(seed=0, options={"split": "train", "variant": 600})
     for i in range(3):
@@ -103,10 +107,7 @@ class _Offline(_Swinging):
 
 def test_the_policy_the_offline_phase_ends_with_is_the_first_candidate():
     env = gym.make("ThreeBoxes-v0", **KW)
-    expert = make_expert(env)
-    idle = np.zeros(env.action_space.shape, np.float32)
-    good = _Fixed(lambda obs: expert.predict(obs)[0])
-    bad = _Fixed(lambda obs: idle)
+    _, _, good, bad = _good_and_bad(env)
     agent = SelectBest(_Offline(good, [bad, bad]), env, episodes=2, first_variant=600)
     agent.learn(10)
     agent.learn(10, reset_num_timesteps=False)

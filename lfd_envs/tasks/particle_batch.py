@@ -235,13 +235,11 @@ class ParticleBatch:
 
     def held_particles(self) -> np.ndarray:
         """Number of particles each picker holds ``(W, P)`` (0 for a flag on over nothing)."""
-        attached = self.sim.attached
+        attached = self.sim.attached  # (W, N) picker index or -1
         p = self.task.num_pickers
-        out = np.zeros((self.num_worlds, p), dtype=np.int64)
-        for w in range(self.num_worlds):
-            a = attached[w]
-            out[w] = np.bincount(a[a >= 0], minlength=p)[:p]
-        return out
+        world, _ = np.nonzero(attached >= 0)
+        slots = world * p + attached[attached >= 0]  # one bincount over all worlds
+        return np.bincount(slots, minlength=self.num_worlds * p).reshape(self.num_worlds, p)
 
     def particles_obs(self) -> np.ndarray:
         """All particle positions then the pickers, ``(W, N + P, 3)`` float32."""
