@@ -285,6 +285,33 @@ def test_observe_grasp_appends_one_flag_per_picker_that_follows_what_it_holds(en
     assert flags == {False, True}, "the expert grasps within 30 steps, so the flag must turn on"
 
 
+def test_observe_grasp_draws_a_holding_picker_black_and_changes_nothing_else_in_the_image():
+    from lfd_envs.experts import make_expert
+    from lfd_envs.tasks.particle_batch import HOLDING_PICKER_COLOR
+
+    kw = dict(obs_mode="state+image", image_size=64)
+    plain = make("ClothFoldDiagonalUnpinned-v0", **kw)
+    env = make("ClothFoldDiagonalUnpinned-v0", observe_grasp=True, **kw)
+    obs, _ = env.reset(seed=3)
+    ref, _ = plain.reset(seed=3)
+    expert = make_expert(env)
+    black = np.round(255 * np.asarray(HOLDING_PICKER_COLOR))
+    seen = set()
+    for _ in range(30):
+        action, _ = expert.predict(obs)
+        obs, *_ = env.step(action)
+        ref, *_ = plain.step(action)
+        holding = bool(obs["state"][-1])
+        changed = (obs["image"] != ref["image"]).any(axis=-1)
+        seen.add(holding)
+        if not holding:
+            assert not changed.any()
+            continue
+        assert changed.any(), "a picker that holds the cloth is drawn in another colour"
+        assert np.all(np.abs(obs["image"][changed].astype(float) - black).max(axis=-1) < 40), "drawn dark"
+    assert seen == {False, True}
+
+
 def test_observe_grasp_in_the_vector_env_and_bad_values():
     vec = gym.make_vec("StraightenRope-v0", num_envs=2, vectorization_mode="vector_entry_point",
                        resolution=15, obs_mode="state", observe_grasp=True)

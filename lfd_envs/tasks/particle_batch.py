@@ -39,6 +39,11 @@ def with_sim_options(params: Any, sim_options: dict[str, Any] | None) -> Any:
     return dataclasses.replace(params, **sim_options)
 
 
+#: colour of a picker that holds something in the images of ``observe_grasp`` envs (pickers are white;
+#: black stands out against them, the cloth and the table)
+HOLDING_PICKER_COLOR = (0.05, 0.05, 0.05)
+#: where the holding marker of a picker that holds nothing is drawn: far below the table, out of sight
+HIDDEN_BELOW = np.array([0.0, 0.0, -100.0])
 #: accepted ``pick_place_speed`` range (m/s)
 MIN_PICK_PLACE_SPEED, MAX_PICK_PLACE_SPEED = 0.01, 10.0
 
@@ -89,7 +94,9 @@ class ParticleBatch:
             the task's and the preset's, e.g. ``{"substeps": 10}``; None keeps those.
         physics: The physics preset, ``"fast"`` or ``"flex_like"`` (:mod:`lfd_envs.physics`).
         observe_grasp: Append to the reduced state one value per picker, 1.0 while it holds at
-            least one particle, else 0.0 (:meth:`state_obs`).
+            least one particle, else 0.0 (:meth:`state_obs`), and draw a picker that holds
+            something in :data:`HOLDING_PICKER_COLOR` in images (:meth:`images`), as a camera
+            sees a gripper close.
     """
 
     def __init__(self, task: ParticleTask, num_worlds: int, action_mode: str, device: str = "cpu",
@@ -254,7 +261,19 @@ class ParticleBatch:
             renderer = Renderer(width, height, self.task.camera(), self.device)
             self._renderers[(height, width)] = renderer
         layers = self.task.render_layers(self.positions, self.pickers, self.ctx)
+        if self.observe_grasp and self.task.num_pickers:
+            layers.append(self._holding_layer())
         return renderer.render(layers, self.num_worlds)
+
+    def _holding_layer(self) -> Any:
+        """Spheres that cover the pickers holding something in :data:`HOLDING_PICKER_COLOR`
+        (slightly larger than the drawn picker); the others' lie out of sight below the table."""
+        from lfd_envs.render import SphereLayer
+
+        holding = self.held_particles() > 0  # (W, P)
+        centers = np.where(holding[..., None], self.pickers, HIDDEN_BELOW)
+        return SphereLayer(centers.astype(np.float32), radii=1.05 * self.task.picker_render_radius,
+                           colors=HOLDING_PICKER_COLOR)
 
     # ------------------------------------------------------------------ state
     def get_state(self, world: int) -> dict[str, np.ndarray]:

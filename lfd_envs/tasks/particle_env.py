@@ -32,7 +32,8 @@ as in MAIL; default None: the preset's, for ``fast`` the task's own, faster sche
 ``sim_options`` (engine parameters replacing the task's and the preset's, a dict of
 ``SimParams`` fields such as ``{"self_collision_distance": 0.01}``; default None; they do not
 change ``physics``, which the scripted experts plan for), ``observe_grasp`` (default False;
-True appends to the reduced state one value per picker, 1.0 while it holds a particle, else 0.0:
+True appends to the reduced state one value per picker, 1.0 while it holds a particle, else 0.0,
+and images draw a picker that holds something black:
 the gripper state a robot knows, without which a memoryless policy cannot tell a picker that
 is about to grasp from one that has just grasped at the same spot); plus
 task options such as ``pinned``. ``particles`` observations are ``(N + P, 3)``: every particle,
