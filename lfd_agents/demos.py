@@ -8,6 +8,9 @@ Every agent that takes ``demonstrations=`` accepts the same things (see :func:`l
   ``observations`` (T+1 entries), ``actions``, ``rewards``, ``terminations``, ``truncations``
   and optionally ``infos`` / ``states``.
 
+Image observations of a dataset written by ``lfd_envs.datasets`` are rendered again from its
+stored states (``lfd_envs.datasets.exact_observations``): Minari keeps them only as JPEG.
+
 Per-step simulator states (for reference-state initialisation) are read from each episode's
 ``infos["state"]``: Minari episodes through ``lfd_envs.datasets.episode_states`` (which undoes
 that module's key encoding), dict episodes by flattening nested dicts with ``"/"``. Each entry
@@ -122,9 +125,30 @@ def _minari_states(ep: Any) -> list[dict[str, np.ndarray]] | None:
     return episode_states(ep)
 
 
-def _from_episode_data(ep: Any) -> Episode:
-    return Episode(observations=_as_obs(ep.observations), actions=ep.actions, rewards=ep.rewards,
+def _from_episode_data(ep: Any, images_env: Any = None) -> Episode:
+    obs = ep.observations
+    if images_env is not None:
+        from lfd_envs.datasets import exact_observations
+
+        obs = exact_observations(ep, images_env)
+    return Episode(observations=_as_obs(obs), actions=ep.actions, rewards=ep.rewards,
                    terminations=ep.terminations, truncations=ep.truncations, states=_minari_states(ep))
+
+
+def _images_env(dataset: Any) -> Any:
+    """For a Minari dataset written by ``lfd_envs.datasets`` whose observations hold images: the
+    env it was collected on, to render those images again exactly (Minari stores them as JPEG);
+    else None."""
+    from lfd_envs import datasets
+
+    space = getattr(dataset, "observation_space", None)
+    if space is None or not datasets.has_images(space):
+        return None
+    try:
+        datasets.dataset_config(dataset)
+    except (AttributeError, KeyError, TypeError, ValueError):  # not written by lfd_envs.datasets
+        return None
+    return datasets.make_env(dataset)
 
 
 def _from_mapping(ep: dict[str, Any]) -> Episode:
@@ -156,8 +180,21 @@ def load_episodes(demonstrations: Any) -> list[Episode]:
         return []
     if isinstance(demonstrations, (str, os.PathLike)):
         demonstrations = _open_minari(demonstrations)
+    images_env = None
     if hasattr(demonstrations, "iterate_episodes"):
+        images_env = _images_env(demonstrations)
         demonstrations = demonstrations.iterate_episodes()
+    try:
+        episodes = _read_episodes(demonstrations, images_env)
+    finally:
+        if images_env is not None:
+            images_env.close()
+    if any(len(ep) == 0 for ep in episodes):
+        raise ValueError("demonstration episodes must have at least one step")
+    return episodes
+
+
+def _read_episodes(demonstrations: Any, images_env: Any) -> list[Episode]:
     if isinstance(demonstrations, (Episode, dict)) or hasattr(demonstrations, "observations"):
         demonstrations = [demonstrations]
     episodes: list[Episode] = []
@@ -167,12 +204,10 @@ def load_episodes(demonstrations: Any) -> list[Episode]:
         elif isinstance(ep, dict):
             episodes.append(_from_mapping(ep))
         elif hasattr(ep, "observations") and hasattr(ep, "actions"):
-            episodes.append(_from_episode_data(ep))
+            episodes.append(_from_episode_data(ep, images_env))
         else:
             raise TypeError(f"cannot read a demonstration episode from {type(ep).__name__}; pass a Minari "
                             "dataset, a path or id of one, or a list of EpisodeData / Episode / dicts")
-    if any(len(ep) == 0 for ep in episodes):
-        raise ValueError("demonstration episodes must have at least one step")
     return episodes
 
 

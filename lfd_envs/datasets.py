@@ -29,8 +29,9 @@ Without ``--out`` (``out_dir=None``) datasets go to Minari's own datasets folder
 prints the ``MINARI_DATASETS_PATH`` to set for Minari's tools. The datasets are local: Minari's
 ``show`` lists a ``minari download`` line for every dataset, which does not apply to them.
 
-Note: Minari's HDF5 storage JPEG-encodes uint8 image observations; images can be rendered
-again exactly from the stored states.
+Note: Minari's HDF5 storage JPEG-encodes uint8 image observations, which at 32×32 blurs the
+cloth and the pickers beyond recognition; :func:`exact_observations` renders them again exactly
+from the stored states (``lfd_agents`` does so whenever it loads a dataset of this module).
 """
 
 from __future__ import annotations
@@ -432,6 +433,38 @@ def episode_states(episode: Any, env: gym.Env | None = None) -> list[dict[str, n
     n = len(next(iter(encoded.values())))
     template = env.unwrapped.get_state() if env is not None and getattr(env.unwrapped, "_variant_index", 0) >= 0 else None
     return [_decode_state({k: v[t] for k, v in encoded.items()}, template) for t in range(n)]
+
+
+def has_images(space: gym.Space) -> bool:
+    """Whether observations of ``space`` hold a uint8 image (which Minari stores as JPEG)."""
+    if isinstance(space, gym.spaces.Dict):
+        return any(has_images(s) for s in space.spaces.values())
+    return isinstance(space, gym.spaces.Box) and space.dtype == np.uint8 and len(space.shape) == 3
+
+
+def exact_observations(episode: Any, env: gym.Env) -> Any:
+    """An episode's observations (``T + 1``, array or dict of arrays) with every image rendered
+    again from the episode's stored states in ``env`` (made with :func:`make_env`), undoing
+    Minari's JPEG encoding; other entries are the stored ones. ``env`` is reset once and left in
+    the episode's last state."""
+    states = episode_states(episode, env)
+    obs = episode.observations
+    if len(states) != len(next(iter(obs.values())) if isinstance(obs, dict) else obs):
+        raise ValueError(f"episode has {len(states)} states for its observations; it was not written by collect")
+    base = env.unwrapped
+    if getattr(base, "_variant_index", -1) < 0:
+        env.reset(seed=0)
+    keys = [k for k, s in env.observation_space.spaces.items() if has_images(s)] if isinstance(obs, dict) else None
+    out = {k: np.array(v, copy=True) for k, v in obs.items()} if isinstance(obs, dict) else np.array(obs, copy=True)
+    for t, state in enumerate(states):
+        base.set_state(state)
+        now = base.current_observation()
+        if keys is None:
+            out[t] = now
+        else:
+            for k in keys:
+                out[k][t] = now[k]
+    return out
 
 
 def replay(env: gym.Env, episode: Any) -> list[float]:

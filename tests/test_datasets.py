@@ -72,3 +72,25 @@ def test_cli_reports_errors_in_one_line(tmp_path, capsys):
         assert "Traceback" not in err and err.count("\n") == 1
         assert re.search(match, err), err
     assert datasets.main(args + ["--episodes", "1", "--name", "dup", "--overwrite"]) == 0
+
+
+def test_image_demonstrations_load_exactly_as_the_env_rendered_them(tmp_path):
+    """Minari stores uint8 images as JPEG; loading a dataset of this module renders them again
+    from the stored states, so an agent trains on the images the env shows it."""
+    from lfd_agents.demos import load_episodes
+
+    kwargs = dict(obs_mode="state+image", image_size=32, resolution=12, observe_grasp=True)
+    path = datasets.collect("ClothFoldDiagonalUnpinned-v1", 1, tmp_path, env_kwargs=kwargs, seed=4, progress=False,
+                            policy_kwargs={"hold_speed": 0.5, "free_speed": 0.5, "press": 0.005})
+    stored = next(datasets.load(path).iterate_episodes())
+    env = gym.make("ClothFoldDiagonalUnpinned-v1", **kwargs)
+    env.reset(seed=0)
+    env.unwrapped.set_state(datasets.episode_states(stored, env)[0])
+    live = [env.unwrapped.current_observation()["image"]]
+    for action in stored.actions:  # the env is deterministic: replaying shows the images of collection
+        live.append(env.step(action)[0]["image"])
+    live = np.stack(live)
+    assert np.abs(stored.observations["image"].astype(int) - live).mean() > 1, "Minari's copy is lossy"
+    (episode,) = load_episodes(path)
+    np.testing.assert_array_equal(episode.observations["image"], live)
+    np.testing.assert_array_equal(episode.observations["state"], stored.observations["state"])
