@@ -32,6 +32,9 @@ class ClothTask(ParticleTask):
     #: SoftGym cloth picker: radius 0.05, grasp threshold 0.005 + 0.05 + 0.00625
     picker_radius: ClassVar[float] = 0.05
     grasp_radius: ClassVar[float] = 0.06125
+    #: pickers are drawn at their collision radius, as SoftGym draws its picker spheres (a smaller
+    #: sphere is a pixel or two at 32x32, too little for a policy to see where its picker is)
+    picker_render_radius: ClassVar[float] = 0.05
     #: cloth particle contact radius (m)
     particle_radius: ClassVar[float] = 0.00625
     cloth_mass: ClassVar[float] = 0.5
