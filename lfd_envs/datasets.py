@@ -447,13 +447,13 @@ def exact_observations(episode: Any, env: gym.Env) -> Any:
     again from the episode's stored states in ``env`` (made with :func:`make_env`), undoing
     Minari's JPEG encoding; other entries are the stored ones. ``env`` is reset once and left in
     the episode's last state."""
+    base = env.unwrapped
+    if getattr(base, "_variant_index", -1) < 0:
+        env.reset(seed=0)  # set_state needs a reset env; it also gives the states' exact dtypes
     states = episode_states(episode, env)
     obs = episode.observations
     if len(states) != len(next(iter(obs.values())) if isinstance(obs, dict) else obs):
         raise ValueError(f"episode has {len(states)} states for its observations; it was not written by collect")
-    base = env.unwrapped
-    if getattr(base, "_variant_index", -1) < 0:
-        env.reset(seed=0)
     keys = [k for k, s in env.observation_space.spaces.items() if has_images(s)] if isinstance(obs, dict) else None
     out = {k: np.array(v, copy=True) for k, v in obs.items()} if isinstance(obs, dict) else np.array(obs, copy=True)
     for t, state in enumerate(states):
