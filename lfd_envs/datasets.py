@@ -436,10 +436,13 @@ def episode_states(episode: Any, env: gym.Env | None = None) -> list[dict[str, n
 
 
 def has_images(space: gym.Space) -> bool:
-    """Whether observations of ``space`` hold a uint8 image (which Minari stores as JPEG)."""
+    """Whether observations of ``space`` hold an image that Minari stores as JPEG (Minari's own
+    test: uint8, 0..255, at least 32×32; smaller images it keeps exactly)."""
+    from minari.dataset.minari_storage import is_image_space
+
     if isinstance(space, gym.spaces.Dict):
         return any(has_images(s) for s in space.spaces.values())
-    return isinstance(space, gym.spaces.Box) and space.dtype == np.uint8 and len(space.shape) == 3
+    return is_image_space(space)
 
 
 def exact_observations(episode: Any, env: gym.Env) -> Any:
