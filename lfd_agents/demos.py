@@ -126,13 +126,14 @@ def _minari_states(ep: Any) -> list[dict[str, np.ndarray]] | None:
 
 
 def _from_episode_data(ep: Any, images_env: Any = None) -> Episode:
+    states = _minari_states(ep)
     obs = ep.observations
     if images_env is not None:
         from lfd_envs.datasets import exact_observations
 
-        obs = exact_observations(ep, images_env)
+        obs = exact_observations(ep, images_env, states)
     return Episode(observations=_as_obs(obs), actions=ep.actions, rewards=ep.rewards,
-                   terminations=ep.terminations, truncations=ep.truncations, states=_minari_states(ep))
+                   terminations=ep.terminations, truncations=ep.truncations, states=states)
 
 
 def _images_env(dataset: Any) -> Any:

@@ -445,15 +445,17 @@ def has_images(space: gym.Space) -> bool:
     return is_image_space(space)
 
 
-def exact_observations(episode: Any, env: gym.Env) -> Any:
+def exact_observations(episode: Any, env: gym.Env, states: list[dict[str, np.ndarray]] | None = None) -> Any:
     """An episode's observations (``T + 1``, array or dict of arrays) with every image rendered
     again from the episode's stored states in ``env`` (made with :func:`make_env`), undoing
-    Minari's JPEG encoding; other entries are the stored ones. ``env`` is reset once and left in
-    the episode's last state."""
+    Minari's JPEG encoding; other entries are the stored ones. ``states``: the episode's
+    :func:`episode_states` if already decoded. ``env`` is reset once and left in the episode's
+    last state."""
     base = env.unwrapped
     if getattr(base, "_variant_index", -1) < 0:
         env.reset(seed=0)  # set_state needs a reset env; it also gives the states' exact dtypes
-    states = episode_states(episode, env)
+    if states is None:
+        states = episode_states(episode, env)
     obs = episode.observations
     if len(states) != len(next(iter(obs.values())) if isinstance(obs, dict) else obs):
         raise ValueError(f"episode has {len(states)} states for its observations; it was not written by collect")
