@@ -15,9 +15,10 @@ same by CPU time) and ``vs_env`` (learn steps/s over env-only steps/s).
 
 Image rows (``--image``): the same agents with 32×32 image observations of the same env
 (``CnnPolicy``: the default lean :class:`~lfd_agents.ImageEncoder`, actor and critic sharing
-it), plus ``dmfd_thesis`` (DMfD with the thesis's encoder, separate for actor and critic),
-``drq`` and ``curl``. Their ``vs_state`` is the update's CPU time over that of the agent's
-state update in the same run (DMfD's for ``dmfd_thesis``, SAC-LfD's for DrQ and CURL, which
+it), plus ``dmfd_separate`` (DMfD with a lean encoder each for actor and critic, the network of the
+harness's ``dmfd/image-v2`` recipe), ``dmfd_thesis`` (DMfD with the thesis's encoder, separate
+for actor and critic), ``drq`` and ``curl``. Their ``vs_state`` is the update's CPU time over that
+of the agent's state update in the same run (DMfD's for both DMfD variants, SAC-LfD's for DrQ and CURL, which
 run its update machinery); ``vs_sac`` stays against SB3 SAC on state.
 
 What bounds an update: ``matmul_ms`` is the time of the matrix products one update runs
@@ -34,7 +35,7 @@ update does not depend on the data.
 Usage::
 
     python -m benchmarks.train_speed [--env ClothFold-v0] [--widths 256 1024] [--agents dmfd awac sac_lfd bc sac]
-        [--image] [--image-agents dmfd dmfd_thesis bc drq curl sac]
+        [--image] [--image-agents dmfd dmfd_separate dmfd_thesis bc drq curl sac]
         [--rounds 3] [--updates 100] [--learn-steps 40] [--batch-size 256] [--threads 1] [--json]
 
 ``agent_rows(...)`` returns the rows as dicts.
@@ -53,11 +54,11 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 AGENTS = ("dmfd", "awac", "sac_lfd", "bc", "sac")
-IMAGE_AGENTS = ("dmfd", "dmfd_thesis", "bc", "drq", "curl", "sac")
+IMAGE_AGENTS = ("dmfd", "dmfd_separate", "dmfd_thesis", "bc", "drq", "curl", "sac")
 NAMES = {"dmfd": "DMfD", "awac": "AWAC", "sac_lfd": "SAC-LfD", "bc": "BC", "sac": "SB3 SAC",
-         "dmfd_thesis": "DMfD (thesis encoder)", "drq": "DrQ", "curl": "CURL"}
+         "dmfd_separate": "DMfD (an encoder each)", "dmfd_thesis": "DMfD (thesis encoder)", "drq": "DrQ", "curl": "CURL"}
 #: the state agent an image agent's update is compared with (``vs_state``)
-STATE_COUNTERPART = {"dmfd": "dmfd", "dmfd_thesis": "dmfd", "bc": "bc", "drq": "sac_lfd", "curl": "sac_lfd",
+STATE_COUNTERPART = {"dmfd": "dmfd", "dmfd_separate": "dmfd", "dmfd_thesis": "dmfd", "bc": "bc", "drq": "sac_lfd", "curl": "sac_lfd",
                      "sac": "sac"}
 
 
@@ -118,6 +119,8 @@ def _build(agent: str, env: Any, width: int, batch_size: int, buffer_rows: int, 
                    policy_kwargs=arch, seed=seed, device="cpu")
     elif agent == "dmfd":
         model = DMfD(policy, env, rsi_prob=0.0, policy_kwargs=arch, **common)
+    elif agent == "dmfd_separate" and image:
+        model = DMfD(policy, env, rsi_prob=0.0, policy_kwargs=dict(arch, share_encoder=False), **common)
     elif agent == "dmfd_thesis" and image:
         model = DMfD(policy, env, rsi_prob=0.0, policy_kwargs=dict(arch, share_encoder=False,
                                                                    features_extractor_kwargs=THESIS_ENCODER), **common)

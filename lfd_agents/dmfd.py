@@ -223,6 +223,9 @@ class DMfDPolicy(BasePolicy):
             Both losses train the encoder: stopping the actor's gradient, as SAC-AE and DrQ do,
             leaves the imitation term without a say in it, and on the toy pick-and-place the
             offline actor then fits the demonstrations several times worse.
+            With ``"state+image"`` observations, whose critic also reads the state, separate
+            encoders fitted the demonstrations' grasps on the diagonal folds more often (the
+            harness's ``dmfd/image-v2`` recipe runs them).
             ``share_encoder=False`` with ``features_extractor_kwargs=THESIS_ENCODER``
             (:mod:`lfd_agents.networks`) is the thesis's image network.
         n_critics: number of Q networks (2).
@@ -357,7 +360,8 @@ class DMfD(OffPolicyAlgorithm):
     The defaults follow the paper (1024-1024 networks, no offline phase, λ 2, lr 3e-4). The
     settings the benchmark runs are the harness's recipes: ``dmfd/state-v2`` on the ``-v1`` ids
     (``dmfd/state-v1`` acting with its best checkpoint on validation variants) and ``dmfd/state-v0``
-    on the ``-v0`` ids (``lfd_bench.recipes.load("dmfd/state-v2").make(env)``).
+    on the ``-v0`` ids, ``dmfd/image-v2`` from pixels
+    (``lfd_bench.recipes.load("dmfd/state-v2").make(env)``).
 
     Args:
         policy: ``"MlpPolicy"`` (state), ``"CnnPolicy"`` (image) or ``"MultiInputPolicy"``
