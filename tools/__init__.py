@@ -10,6 +10,7 @@ Each answers one question:
 - ``python -m tools.mopa_modes``: which actions (planned or direct) does MoPA-SAC take while it trains?
 - ``python tools/mopa_planner_queries.py``: do planner settings change the success rate on a fixed set of queries?
 - ``python -m tools.online_probe``: what does the online phase of DMfD/AWAC do to the offline policy?
+- ``python -m tools.offline_probe``: how well does the offline phase of DMfD/AWAC fit the demonstrations?
 - ``python -m tools.trace_policy``: step by step, where does a learner depart from its demonstrator?
 - ``python tools/frame_profile.py``: where does an engine frame spend its time, -v0 against -v1?
 """

@@ -20,6 +20,7 @@ import argparse
 import json
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -29,8 +30,10 @@ from tools.online_probe import HeldRate, add_cell_arguments, find_cell
 
 
 def probe_offline(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, agent_name: str = "dmfd",
-                  seed: int = 0, eval_episodes: int = 10, log: Any = None) -> list[dict[str, Any]]:
-    """Train the offline phase of every variant (agent keyword overrides) and score it."""
+                  seed: int = 0, eval_episodes: int = 10, demo_cache: Path | None = None,
+                  log: Any = None) -> list[dict[str, Any]]:
+    """Train the offline phase of every variant (agent keyword overrides) and score it: one record
+    per variant with its mean p̂, held rate, gradient updates and training seconds."""
     from stable_baselines3.common.logger import configure
 
     import lfd_envs  # noqa: F401
@@ -40,7 +43,7 @@ def probe_offline(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, 
 
     factory = resolve_agent(agent_name)
     base = dict(cell["agent_kwargs"])
-    base.setdefault("demo_cache", str(DEFAULT_RESULTS / CACHE_DIRNAME))
+    base.setdefault("demo_cache", str(demo_cache or DEFAULT_RESULTS / CACHE_DIRNAME))
     env = gym.make(cell["env"], **cell["env_kwargs"])
     eval_env = HeldRate(gym.make(cell["env"], **cell["env_kwargs"]))
     records = []
@@ -56,7 +59,7 @@ def probe_offline(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, 
         train_s = time.perf_counter() - t0
         scores = evaluate(agent, eval_env, eval_episodes, seed=0)
         rec = {"variant": name, "mean_p": round(float(np.mean(scores)), 4), **eval_env.rate(),
-               "train_s": round(train_s, 1)}
+               "updates": int(agent._n_updates), "train_s": round(train_s, 1)}
         records.append(rec)
         if log is not None:
             print(json.dumps(rec), file=log, flush=True)
