@@ -360,8 +360,8 @@ class DMfD(OffPolicyAlgorithm):
     The defaults follow the paper (1024-1024 networks, no offline phase, λ 2, lr 3e-4). The
     settings the benchmark runs are the harness's recipes: ``dmfd/state-v2`` on the ``-v1`` ids
     (``dmfd/state-v1`` acting with its best checkpoint on validation variants) and ``dmfd/state-v0``
-    on the ``-v0`` ids, ``dmfd/image-v2`` from pixels
-    (``lfd_bench.recipes.load("dmfd/state-v2").make(env)``).
+    on the ``-v0`` ids (``lfd_bench.recipes.load("dmfd/state-v2").make(env)``), and ``dmfd/image-v2``
+    from pixels.
 
     Args:
         policy: ``"MlpPolicy"`` (state), ``"CnnPolicy"`` (image) or ``"MultiInputPolicy"``

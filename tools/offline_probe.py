@@ -26,7 +26,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from tools.online_probe import HeldRate, add_cell_arguments, find_cell
+from tools.online_probe import HeldRate, add_variant_arguments, variants_and_cell
 
 
 def probe_offline(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, agent_name: str = "dmfd",
@@ -45,7 +45,9 @@ def probe_offline(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, 
     base = dict(cell["agent_kwargs"])
     base.setdefault("demo_cache", str(demo_cache or DEFAULT_RESULTS / CACHE_DIRNAME))
     env = gym.make(cell["env"], **cell["env_kwargs"])
-    eval_env = HeldRate(gym.make(cell["env"], **cell["env_kwargs"]))
+    eval_env = gym.make(cell["env"], **cell["env_kwargs"])
+    if hasattr(eval_env.unwrapped, "held_particles"):  # particle tasks
+        eval_env = HeldRate(eval_env)
     records = []
     for name, overrides in variants.items():
         t0 = time.perf_counter()
@@ -58,7 +60,7 @@ def probe_offline(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, 
             agent.learn(total_timesteps=0)
         train_s = time.perf_counter() - t0
         scores = evaluate(agent, eval_env, eval_episodes, seed=0)
-        rec = {"variant": name, "mean_p": round(float(np.mean(scores)), 4), **eval_env.rate(),
+        rec = {"variant": name, "mean_p": round(float(np.mean(scores)), 4), **(eval_env.rate() if isinstance(eval_env, HeldRate) else {}),
                "updates": int(agent._n_updates), "train_s": round(train_s, 1)}
         records.append(rec)
         if log is not None:
@@ -67,20 +69,13 @@ def probe_offline(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, 
 
 
 def main(argv: list[str] | None = None) -> int:
-    from lfd_bench.run import load_suite
-
     p = argparse.ArgumentParser(prog="python -m tools.offline_probe", description=__doc__.split("\n\n")[0])
-    add_cell_arguments(p, default_agent="dmfd")
+    add_variant_arguments(p, default_agent="dmfd")
     p.add_argument("--eval-episodes", type=int, default=10)
-    p.add_argument("--variant", nargs=2, action="append", metavar=("NAME", "JSON"),
-                   help="agent keyword overrides for one variant (repeatable; default: base '{}')")
     args = p.parse_args(argv)
     try:
-        variants = {name: json.loads(text) for name, text in (args.variant or [("base", "{}")])}
-        if not all(isinstance(v, dict) for v in variants.values()):
-            raise ValueError("every --variant JSON must be an object of agent keywords")
-        cell = find_cell(load_suite(args.suite), args.env, args.agent, args.label)
-    except (ValueError, json.JSONDecodeError) as exc:
+        variants, cell = variants_and_cell(args)
+    except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     import torch as th

@@ -35,7 +35,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-__all__ = ["probe_cell", "find_cell", "add_cell_arguments", "HeldRate"]
+__all__ = ["probe_cell", "find_cell", "add_cell_arguments", "add_variant_arguments", "variants_and_cell", "HeldRate"]
 
 DEFAULT_CACHE = Path(__file__).resolve().parent.parent / "results" / "_probe"  #: offline states, reused
 
@@ -187,6 +187,28 @@ def add_cell_arguments(parser: argparse.ArgumentParser, default_agent: str) -> N
     parser.add_argument("--seed", type=int, default=0)
 
 
+def add_variant_arguments(parser: argparse.ArgumentParser, default_agent: str) -> None:
+    """:func:`add_cell_arguments` and ``--variant NAME JSON`` (repeatable): the settings to compare
+    on the cell (:func:`variants_and_cell` reads them)."""
+    add_cell_arguments(parser, default_agent)
+    parser.add_argument("--variant", nargs=2, action="append", metavar=("NAME", "JSON"),
+                        help="agent keyword overrides for one variant (repeatable; default: base '{}')")
+
+
+def variants_and_cell(args: argparse.Namespace) -> tuple[dict[str, dict[str, Any]], dict[str, Any]]:
+    """The ``--variant`` overrides by name and the cell that :func:`add_variant_arguments`' options
+    pick; a malformed variant or an unknown cell is a ``ValueError``."""
+    from lfd_bench.run import load_suite
+
+    try:
+        variants = {name: json.loads(text) for name, text in (args.variant or [("base", "{}")])}
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"a --variant JSON does not parse: {exc}") from exc
+    if not all(isinstance(v, dict) for v in variants.values()):
+        raise ValueError("every --variant JSON must be an object of agent keywords")
+    return variants, find_cell(load_suite(args.suite), args.env, args.agent, args.label)
+
+
 def _table(results: dict[str, list[dict[str, Any]]]) -> str:
     steps = sorted({r["online_steps"] for recs in results.values() for r in recs if "online_steps" in r})
     lines = ["| variant | " + " | ".join(f"p̂ @{s}" for s in steps) + " |", "|---" * (len(steps) + 1) + "|"]
@@ -197,24 +219,17 @@ def _table(results: dict[str, list[dict[str, Any]]]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from lfd_bench.run import load_suite
-
     p = argparse.ArgumentParser(prog="python -m tools.online_probe", description=__doc__.split("\n\n")[0])
-    add_cell_arguments(p, default_agent="dmfd")
+    add_variant_arguments(p, default_agent="dmfd")
     p.add_argument("--online-steps", type=int, default=2000)
     p.add_argument("--eval-every", type=int, default=1000)
     p.add_argument("--eval-episodes", type=int, default=10)
-    p.add_argument("--variant", nargs=2, action="append", metavar=("NAME", "JSON"),
-                   help="agent keyword overrides for one variant (repeatable; default: base '{}')")
     p.add_argument("--cache", type=Path, default=DEFAULT_CACHE)
     p.add_argument("--out", type=Path, help="write all records as JSON here")
     args = p.parse_args(argv)
     try:
-        variants = {name: json.loads(text) for name, text in (args.variant or [("base", "{}")])}
-        if not all(isinstance(v, dict) for v in variants.values()):
-            raise ValueError("every --variant JSON must be an object of agent keywords")
-        cell = find_cell(load_suite(args.suite), args.env, args.agent, args.label)
-    except (ValueError, json.JSONDecodeError) as exc:
+        variants, cell = variants_and_cell(args)
+    except ValueError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     import torch as th
