@@ -76,3 +76,13 @@ def test_held_rate_counts_episodes_in_which_a_picker_held_the_cloth():
     steer_picker(env, corner, 15)  # onto a corner with the flag on: grasps on contact
     env.reset(seed=1)
     assert env.rate() == {"held_rate": 0.5}
+
+
+def test_held_rate_passes_through_an_env_without_held_particles():
+    import gymnasium as gym
+
+    env = probe.HeldRate(gym.make("CartPole-v1"))
+    env.reset(seed=0)
+    obs, reward, *_ = env.step(0)
+    assert obs.shape == (4,) and reward == 1.0
+    assert env.rate() == {}

@@ -45,9 +45,7 @@ def probe_offline(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, 
     base = dict(cell["agent_kwargs"])
     base.setdefault("demo_cache", str(demo_cache or DEFAULT_RESULTS / CACHE_DIRNAME))
     env = gym.make(cell["env"], **cell["env_kwargs"])
-    eval_env = gym.make(cell["env"], **cell["env_kwargs"])
-    if hasattr(eval_env.unwrapped, "held_particles"):  # particle tasks
-        eval_env = HeldRate(eval_env)
+    eval_env = HeldRate(gym.make(cell["env"], **cell["env_kwargs"]))
     records = []
     for name, overrides in variants.items():
         t0 = time.perf_counter()
@@ -60,7 +58,7 @@ def probe_offline(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, 
             agent.learn(total_timesteps=0)
         train_s = time.perf_counter() - t0
         scores = evaluate(agent, eval_env, eval_episodes, seed=0)
-        rec = {"variant": name, "mean_p": round(float(np.mean(scores)), 4), **(eval_env.rate() if isinstance(eval_env, HeldRate) else {}),
+        rec = {"variant": name, "mean_p": round(float(np.mean(scores)), 4), **eval_env.rate(),
                "updates": int(agent._n_updates), "train_s": round(train_s, 1)}
         records.append(rec)
         if log is not None:

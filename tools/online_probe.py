@@ -71,10 +71,12 @@ def _batch_stats(agent: Any, buffer: Any, name: str, n: int = 256) -> dict[str, 
 
 class HeldRate(gym.Wrapper):
     """Eval-env wrapper: per episode, whether a picker held a particle at the end of any step
-    (the env's ``held_particles``; pick-and-place steps end with the pickers released)."""
+    (the env's ``held_particles``; pick-and-place steps end with the pickers released). On an env
+    without pickers holding particles it passes steps through and :meth:`rate` is ``{}``."""
 
     def __init__(self, env: gym.Env) -> None:
         super().__init__(env)
+        self.tracks = hasattr(env.unwrapped, "held_particles")
         self.episodes: list[bool] = []
 
     def reset(self, **kwargs: Any) -> Any:
@@ -83,13 +85,15 @@ class HeldRate(gym.Wrapper):
 
     def step(self, action: Any) -> Any:
         out = self.env.step(action)
-        self.episodes[-1] |= bool(np.any(self.env.unwrapped.held_particles > 0))
+        if self.tracks:
+            self.episodes[-1] |= bool(np.any(self.env.unwrapped.held_particles > 0))
         return out
 
     def rate(self) -> dict[str, float]:
-        """``{"held_rate": fraction of the episodes since the last call}``."""
+        """``{"held_rate": fraction of the episodes since the last call}`` (``{}`` if none, or
+        if the env has no held particles)."""
         episodes, self.episodes = self.episodes, []
-        return {"held_rate": float(np.mean(episodes))} if episodes else {}
+        return {"held_rate": float(np.mean(episodes))} if episodes and self.tracks else {}
 
 
 def _mean_drift(agent: Any, reference: Any, buffer: Any, n: int = 2000) -> list[float] | None:
@@ -125,9 +129,7 @@ def probe_cell(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, age
         raise ValueError(f"the cell's {agent_name} has no offline_steps: nothing to probe")
     base_kwargs.setdefault("demo_cache", str(demo_cache or DEFAULT_RESULTS / CACHE_DIRNAME))
     env = gym.make(cell["env"], **cell["env_kwargs"])
-    eval_env = gym.make(cell["env"], **cell["env_kwargs"])
-    if hasattr(eval_env.unwrapped, "held_particles"):
-        eval_env = HeldRate(eval_env)
+    eval_env = HeldRate(gym.make(cell["env"], **cell["env_kwargs"]))
     key = hashlib.sha256(json.dumps([cell, agent_name, seed], sort_keys=True).encode()).hexdigest()[:16]
     path = Path(cache) / f"offline_{key}.pt"
 
@@ -154,7 +156,7 @@ def probe_cell(cell: dict[str, Any], variants: dict[str, dict[str, Any]], *, age
         records, done = [], 0
         while True:
             scores = evaluate(agent, eval_env, eval_episodes, seed=0)
-            held = eval_env.rate() if isinstance(eval_env, HeldRate) else {}
+            held = eval_env.rate()
             rec = {"variant": name, "online_steps": done, "mean_p": round(float(np.mean(scores)), 4),
                    **{k: round(v, 4) for k, v in held.items()},
                    "log_std": round(float(agent.actor.log_std().detach().mean()), 4),
