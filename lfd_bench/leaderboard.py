@@ -440,8 +440,31 @@ def _headline_value(runs: list[dict[str, Any]], metric: str = "normalized_perfor
     except KeyError:
         return "—"
     if s.seeds < 2:
-        return f"{s.mean:.3f} (1 seed)"
-    return f"{s.mean:.3f} [{s.mean_ci_low:.3f}, {s.mean_ci_high:.3f}]"
+        return f"{_three(s.mean)} (1 seed)"
+    return f"{_three(s.mean)} [{_three(s.mean_ci_low)}, {_three(s.mean_ci_high)}]"
+
+
+def _three(value: float) -> str:
+    """``value`` to three decimals, never ``-0.000``."""
+    return f"{0.0 if abs(value) < 5e-4 else value:.3f}"
+
+
+def _beside_headline(runs: list[dict[str, Any]], metrics: list[str]) -> str:
+    """`` · fold quality 0.789``: the mean over seeds of each reported metric the runs recorded."""
+    parts = []
+    for m in metrics:
+        try:
+            parts.append(f"{REPORTED_METRICS[m]} {_three(float(np.mean([np.mean(v) for v in by_seed(runs, m)])))}")
+        except KeyError:
+            continue
+    return "".join(f" · {p}" for p in parts)
+
+
+def _beside_caption(cells: dict[str, dict[str, list[dict[str, Any]]]], metric: str) -> str:
+    """The caption's sentence naming the reported metrics shown beside the headline metric, if any."""
+    names = [REPORTED_METRICS[m] for m in REPORTED_METRICS if m != metric
+             and any(m in reported_metrics(agents) for agents in cells.values())]
+    return f" Beside it: the mean over seeds of {' and '.join(names)}, where the task reports it." if names else ""
 
 
 def verdicts(cells: dict[str, dict[str, list[dict[str, Any]]]], suite_config: dict[str, Any] | None,
@@ -481,14 +504,17 @@ def render_headline(results: list[dict[str, Any]], *, suite: str, suite_config: 
                "No cell is marked headline: per env, its cell with the most agents.") +
               (f" Budget: {config['budget_cut']}" if config.get("budget_cut") else ""),
               "", f"{HEADLINE_METRICS[metric]} over seeds, [95% CI] with seeds as runs; *thesis* rows: the reported "
-              "value.", ""]
+              "value." + _beside_caption(cells, metric), ""]
     head = "| agent | " + " | ".join(cells) + " |"
     lines += [head, _sep(head)]
-    agents = sorted({a for agents in cells.values() for a in agents},
+    # agents with a thesis row but no finished cell yet keep their row: the reader sees what is missing
+    agents = sorted({a for agents in cells.values() for a in agents} | {a for r in refs.values() for a in r},
                     key=lambda a: (a != "expert", a in REFERENCE_AGENTS, a))
+    beside = {label: [m for m in reported_metrics(cells[label]) if m != metric] for label in cells}
     for agent in agents:
         lines.append(f"| {agent} | " + " | ".join(
-            _headline_value(cells[label][agent], metric) if agent in cells[label] else "—" for label in cells) + " |")
+            _headline_value(cells[label][agent], metric) + _beside_headline(cells[label][agent], beside[label])
+            if agent in cells[label] else "—" for label in cells) + " |")
         if any(agent in refs[label] for label in cells):
             lines.append(f"| *thesis: {agent}* | " + " | ".join(
                 f"{refs[label][agent]:.3f}" if agent in refs[label] else "—" for label in cells) + " |")

@@ -259,8 +259,7 @@ def main(argv: list[str] | None = None) -> int:
         except CellsFailed as exc:
             print(f"error: {exc}", file=sys.stderr)
             code = 1
-    shown = [a for a in (argv if argv is not None else sys.argv[1:]) if a != "--report"]
-    command = "python -m lfd_bench.run " + " ".join(shown)
+    command = regenerate_command(argv if argv is not None else sys.argv[1:])
     try:
         path = write_leaderboard(out, Path(args.leaderboard), command=command, suite=suite["name"], suite_config=suite,
                                  plot_dir=Path(args.plot_dir) if args.plot_dir else None,
@@ -271,6 +270,29 @@ def main(argv: list[str] | None = None) -> int:
         return code or 1
     print(f"wrote {path}")
     return code
+
+
+# Options that choose which of the suite's cells run now, or how, but not what any cell holds: the
+# leaderboard shows every finished cell of the suite, so the command it prints leaves them out.
+_RUN_SCOPE_FLAGS = {"--agents": True, "--envs": True, "--jobs": True, "--executor": True, "--address": True,
+                    "--force": False, "--report": False, "--no-progress": False}
+
+
+def regenerate_command(argv: list[str]) -> str:
+    """The command that regenerates the whole suite section written from ``argv``: ``argv`` without
+    the options that only scope or schedule this invocation (``--envs``, ``--agents``, ``--jobs``, ...)."""
+    kept: list[str] = []
+    skipping = False
+    for token in argv:
+        flag = token.split("=", 1)[0]
+        if flag in _RUN_SCOPE_FLAGS:
+            skipping = _RUN_SCOPE_FLAGS[flag] and "=" not in token
+            continue
+        if skipping and not token.startswith("-"):
+            continue
+        skipping = False
+        kept.append(token)
+    return " ".join(["python -m lfd_bench.run", *kept])
 
 
 def preflight(cells: list[Cell], args: argparse.Namespace) -> int:

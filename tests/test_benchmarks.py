@@ -427,6 +427,14 @@ def test_report_rewrites_the_leaderboard_from_finished_cells_and_trains_nothing(
     assert "--report" not in text and f"python -m lfd_bench.run --suite {suite}" in text
 
 
+def test_the_regenerate_command_drops_the_options_that_only_scope_this_run():
+    """The leaderboard shows every finished cell of the suite, so the command it prints must
+    regenerate all of them, not the slice this invocation trained."""
+    argv = ["--suite", "s", "--envs", "A-v1", "B-v1", "--agents", "dmfd", "curl", "--jobs=2", "--seeds", "0", "1",
+            "--no-progress", "--executor", "local", "--force", "--report", "--budget", "100", "--agent", "m:f"]
+    assert bench.regenerate_command(argv) == "python -m lfd_bench.run --suite s --seeds 0 1 --budget 100 --agent m:f"
+
+
 def test_train_speed_matmul_floor_is_part_of_the_update_and_sets_max_vs_sac():
     """The replayed matrix products of an update take less time than the whole update, and
     ``max_vs_sac`` is SB3 SAC's update time over the agent's matmul time (same run)."""
@@ -627,3 +635,24 @@ def test_headline_shows_success_where_the_suite_says_so():
     plain = render_headline(results, suite="s", suite_config={**config, "headline_metric": "normalized_performance"},
                             command="x", page="p.md")
     assert "| mopa_sac | 0.150 [" in plain and "| *thesis: mopa_sac* | 0.900 |" in plain
+
+
+def test_headline_puts_fold_quality_beside_the_score_and_keeps_thesis_rows_of_agents_not_run_yet():
+    """A task's reported quality measure sits beside p̂ (mean over seeds), and an agent the thesis
+    reports but no cell has run yet keeps its rows, so the reader sees what is missing."""
+    from lfd_bench.leaderboard import render_headline
+
+    def result(seed, quality):
+        return {"cell": {"suite": "s", "env_id": "ClothFoldDiagonalPinned-v1", "agent": "dmfd", "seed": seed,
+                         "tags": {}},
+                "final_normalized_performance": [0.8, 0.9], "final_metrics": {"fold_quality": quality},
+                "learning_curve": [], "train_wall_time_s": 1.0}
+
+    results = [result(0, [0.5, 0.7]), result(1, [0.9, 0.9]), result(2, [-0.0001, 0.0])]
+    config = {"reference": {"ClothFoldDiagonalPinned-v1": {"source": "thesis", "rows": {
+        "dmfd": {"mean": 0.895}, "curl": {"mean": 0.679}}}}}
+    md = render_headline(results, suite="s", suite_config=config, command="x", page="p.md")
+    row = next(line for line in md.splitlines() if line.startswith("| dmfd |"))
+    assert row.startswith("| dmfd | 0.850 [") and row.endswith(" · fold quality 0.500 |")  # (0.6 + 0.9 + 0) / 3
+    assert "| curl | — |" in md and "| *thesis: curl* | 0.679 |" in md
+    assert "Beside it: the mean over seeds of fold quality" in md and "-0.000" not in md
