@@ -454,16 +454,20 @@ def _beside_headline(runs: list[dict[str, Any]], metrics: list[str]) -> str:
     parts = []
     for m in metrics:
         try:
-            parts.append(f"{REPORTED_METRICS[m]} {_three(float(np.mean([np.mean(v) for v in by_seed(runs, m)])))}")
+            parts.append(f"{REPORTED_METRICS[m]} {_three(_mean_of_seeds(runs, m))}")
         except KeyError:
             continue
     return "".join(f" · {p}" for p in parts)
 
 
-def _beside_caption(cells: dict[str, dict[str, list[dict[str, Any]]]], metric: str) -> str:
+def _mean_of_seeds(runs: list[dict[str, Any]], metric: str) -> float:
+    """The mean over seeds of each seed's mean ``metric``; ``KeyError`` if a run did not record it."""
+    return float(np.mean([np.mean(v) for v in by_seed(runs, metric)]))
+
+
+def _beside_caption(beside: dict[str, list[str]]) -> str:
     """The caption's sentence naming the reported metrics shown beside the headline metric, if any."""
-    names = [REPORTED_METRICS[m] for m in REPORTED_METRICS if m != metric
-             and any(m in reported_metrics(agents) for agents in cells.values())]
+    names = [REPORTED_METRICS[m] for m in REPORTED_METRICS if any(m in ms for ms in beside.values())]
     return f" Beside it: the mean over seeds of {' and '.join(names)}, where the task reports it." if names else ""
 
 
@@ -476,7 +480,7 @@ def verdicts(cells: dict[str, dict[str, list[dict[str, Any]]]], suite_config: di
         parts = []
         for agent in sorted(a for a in agents if a in refs[label] and a not in REFERENCE_AGENTS):
             try:
-                ours = float(np.mean([np.mean(v) for v in by_seed(agents[agent], metric)]))
+                ours = _mean_of_seeds(agents[agent], metric)
             except KeyError:
                 continue
             diff = ours - refs[label][agent]
@@ -497,6 +501,7 @@ def render_headline(results: list[dict[str, Any]], *, suite: str, suite_config: 
     cells = main_cells(table)
     refs = _reference_means(cells, suite_config, _reference_key(metric))
     marked = any(is_headline(agents) for agents in cells.values())
+    beside = {label: [m for m in reported_metrics(cells[label]) if m != metric] for label in cells}
     lines = [f"# Suite `{suite}`", ""]
     if config.get("description"):
         lines += [str(config["description"]).split(". ")[0].rstrip(".") + ".", ""]
@@ -504,13 +509,12 @@ def render_headline(results: list[dict[str, Any]], *, suite: str, suite_config: 
                "No cell is marked headline: per env, its cell with the most agents.") +
               (f" Budget: {config['budget_cut']}" if config.get("budget_cut") else ""),
               "", f"{HEADLINE_METRICS[metric]} over seeds, [95% CI] with seeds as runs; *thesis* rows: the reported "
-              "value." + _beside_caption(cells, metric), ""]
+              "value." + _beside_caption(beside), ""]
     head = "| agent | " + " | ".join(cells) + " |"
     lines += [head, _sep(head)]
     # agents with a thesis row but no finished cell yet keep their row: the reader sees what is missing
     agents = sorted({a for agents in cells.values() for a in agents} | {a for r in refs.values() for a in r},
                     key=lambda a: (a != "expert", a in REFERENCE_AGENTS, a))
-    beside = {label: [m for m in reported_metrics(cells[label]) if m != metric] for label in cells}
     for agent in agents:
         lines.append(f"| {agent} | " + " | ".join(
             _headline_value(cells[label][agent], metric) + _beside_headline(cells[label][agent], beside[label])
