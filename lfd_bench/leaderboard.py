@@ -139,7 +139,7 @@ def _metric_cell(runs: list[dict[str, Any]], key: str) -> str:
     if not all(key in r.get("final_metrics", {}) for r in runs):
         return "—"
     v = np.concatenate([np.asarray(r["final_metrics"][key], dtype=float) for r in runs])
-    return f"{v.mean():.3f} ± {v.std():.3f}"
+    return f"{_three(v.mean())} ± {_three(v.std())}"
 
 
 def by_seed(runs: list[dict[str, Any]], metric: str = "normalized_performance") -> list[list[float]]:

@@ -656,3 +656,13 @@ def test_headline_puts_fold_quality_beside_the_score_and_keeps_thesis_rows_of_ag
     assert row.startswith("| dmfd | 0.850 [") and row.endswith(" · fold quality 0.500 |")  # (0.6 + 0.9 + 0) / 3
     assert "| curl | — |" in md and "| *thesis: curl* | 0.679 |" in md
     assert "Beside it: the mean over seeds of fold quality" in md and "-0.000" not in md
+
+
+def test_every_cell_table_never_prints_negative_zero_for_a_reported_metric():
+    """A metric whose episodes round to zero reads 0.000 ± 0.000 in the per-cell table, not -0.000."""
+    from lfd_bench.leaderboard import agent_row
+
+    run = {"cell": {"seed": 0}, "final_normalized_performance": [0.0, 0.0],
+           "final_metrics": {"fold_quality": [-1e-5, -2e-5]}, "train_wall_time_s": 0.0}
+    row, _ = agent_row("zero", [run], ["fold_quality"])
+    assert "| 0.000 ± 0.000 |" in row and "-0.000" not in row
